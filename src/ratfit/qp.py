@@ -1,0 +1,278 @@
+"""The quadratic program P(n, m) of the seed, solved with an active set.
+
+    min ||c||_2   s.t.   A c >= delta ||A_j||  row-wise,   c = (p_1..p_n, q_1..q_m)
+
+with rows  p(x_i) - lo_i q(x_i) >= .  and  hi_i q(x_i) - p(x_i) >= .  and
+delta = 1 / cond(A) of the full matrix. For large data the QP is solved on a
+spread subset of points; violated points are added in batches until one full
+pass over every segment finds none. An "infeasible" from the solver on any
+subset is an infeasibility of the full problem (fewer rows, larger feasible
+set), but numerically it is cross-checked with a second, well-conditioned
+formulation before it is believed.
+"""
+
+from __future__ import annotations
+
+import threading
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+from numpy.typing import NDArray
+
+from .bases import PolynomialSpace
+from .segments import Segments
+from .solvers import solve_qp
+
+__all__ = ["Attempt", "ConstraintSystem", "CROSS_CHECKS", "solve_fixed"]
+
+Array = NDArray[np.float64]
+CROSS_CHECKS = ("orth", "lp", "none")
+
+# Rows are written to the QR in chunks of this many points (bounded memory).
+_CHUNK = 32_768
+
+
+class ConstraintSystem:
+    """Everything P(n, m) needs for one channel, for any n <= n_max, m <= m_max.
+
+    The design matrix B of the largest size is computed once; A(n, m) uses its
+    leading columns. delta(n, m) comes from one chunked (TSQR) R factor of the
+    largest A: A(n,m) = Q R[:, S], so the singular values of A(n,m) are those
+    of the small matrix R[:, S] and no dense SVD of a tall matrix is needed.
+    """
+
+    def __init__(self, space: PolynomialSpace, seg: Segments, channel: int = 0) -> None:
+        self.space = space
+        self.x = seg.x
+        self.t = space.to_window(seg.x)
+        self.lo = np.ascontiguousarray(seg.lo[:, channel])
+        self.hi = np.ascontiguousarray(seg.hi[:, channel])
+        self.n_points = seg.n_points
+        self._k = 0
+        self.B = np.zeros((self.n_points, 0))
+        self._cum_sq = self.B
+        self._R: Array | None = None
+        self._lock = threading.Lock()
+        order = np.lexsort(self.t.T[::-1])  # sorted along x0, then x1, ...
+        self._order = order
+
+    # -- sizes ------------------------------------------------------------------
+    def prepare(self, n_max: int, m_max: int) -> None:
+        """Make B and the R factor cover (n_max, m_max); call before using threads."""
+        with self._lock:
+            k = max(n_max, m_max)
+            if k > self._k:
+                self.B = self.space.design(self.t, k, window=True)
+                self._cum_sq = np.cumsum(self.B**2, axis=1)
+                self._k = k
+                self._R = None
+            if self._R is None:
+                self._R = self._tsqr()
+
+    def _tsqr(self) -> Array:
+        k = self._k
+        acc: Array | None = None
+        for start in range(0, self.n_points, _CHUNK):
+            sl = slice(start, start + _CHUNK)
+            b = self.B[sl]
+            lo, hi = self.lo[sl, None], self.hi[sl, None]
+            block = np.vstack([np.hstack([b, -lo * b]), np.hstack([-b, hi * b])])
+            if acc is not None:
+                block = np.vstack([acc, block])
+            acc = np.linalg.qr(block, mode="r")
+        assert acc is not None
+        return acc[: 2 * k] if acc.shape[0] > 2 * k else acc
+
+    def columns(self, n: int, m: int) -> NDArray[np.int64]:
+        return np.r_[np.arange(n), self._k + np.arange(m)]
+
+    # -- the matrix, by blocks of points --------------------------------------
+    def rows(self, n: int, m: int, idx: NDArray[np.int64] | None = None) -> Array:
+        """A(n, m) restricted to points ``idx``: lo-rows first, then hi-rows."""
+        b = self.B if idx is None else self.B[idx]
+        lo = self.lo if idx is None else self.lo[idx]
+        hi = self.hi if idx is None else self.hi[idx]
+        bp, bq = b[:, :n], b[:, :m]
+        return np.vstack(
+            [np.hstack([bp, -lo[:, None] * bq]), np.hstack([-bp, hi[:, None] * bq])]
+        )
+
+    def row_norms(self, n: int, m: int, idx: NDArray[np.int64] | None = None) -> Array:
+        cs = self._cum_sq if idx is None else self._cum_sq[idx]
+        lo = self.lo if idx is None else self.lo[idx]
+        hi = self.hi if idx is None else self.hi[idx]
+        sp, sq = cs[:, n - 1], cs[:, m - 1]
+        return np.sqrt(np.concatenate([sp + lo**2 * sq, sp + hi**2 * sq]))
+
+    def residuals(self, n: int, m: int, c: Array) -> Array:
+        """A(n, m) c for every row (2N,), without forming A."""
+        p = self.B[:, :n] @ c[:n]
+        q = self.B[:, :m] @ c[n:]
+        return np.concatenate([p - self.lo * q, self.hi * q - p])
+
+    def conditioning(self, n: int, m: int) -> tuple[float, float, float]:
+        """(delta, sigma_min, sigma_max) of the full A(n, m)."""
+        assert self._R is not None, "call prepare() first"
+        s = np.linalg.svd(self._R[:, self.columns(n, m)], compute_uv=False)
+        smax, smin = float(s[0]), float(s[-1])
+        delta = smin / smax if smax > 0 else 0.0
+        return delta, smin, smax
+
+    def spread_subset(self, size: int) -> NDArray[np.int64]:
+        """``size`` points spread along the data, plus the extreme segments."""
+        if size >= self.n_points:
+            return np.arange(self.n_points)
+        pick = self._order[np.linspace(0, self.n_points - 1, size).round().astype(np.int64)]
+        mid = 0.5 * (self.lo + self.hi)
+        extra = [np.argmax(mid), np.argmin(mid), np.argmin(self.hi - self.lo)]
+        return np.unique(np.concatenate([pick, np.asarray(extra, dtype=np.int64)]))
+
+
+@dataclass
+class Attempt:
+    """The outcome of P(n, m) for one split: a candidate c or an infeasibility."""
+
+    n: int
+    m: int
+    status: str  # "feasible" (QP-level), "infeasible", "failed"
+    c: Array | None = None
+    solver_status: str = ""
+    decided_by: str = ""
+    disagreement: str = ""
+    delta: float = float("nan")
+    sigma_min: float = float("nan")
+    sigma_max: float = float("nan")
+    active_set_size: int = 0
+    qp_solves: int = 0
+    seconds: float = 0.0
+    messages: list[str] = field(default_factory=list)
+
+    @property
+    def total(self) -> int:
+        return self.n + self.m
+
+    def summary(self) -> dict:
+        return {
+            "n": self.n, "m": self.m, "status": self.status,
+            "solver_status": self.solver_status, "decided_by": self.decided_by,
+            "disagreement": self.disagreement, "qp_solves": self.qp_solves,
+            "active_set_size": self.active_set_size, "seconds": round(self.seconds, 6),
+        }
+
+
+def solve_fixed(
+    system: ConstraintSystem,
+    n: int,
+    m: int,
+    *,
+    solver: str = "quadprog",
+    cross_check: str = "orth",
+    active_set: bool | None = None,
+    max_rounds: int = 100,
+) -> Attempt:
+    """Solve P(n, m) on ``system``; the returned c satisfies every row of A > 0."""
+    t0 = time.perf_counter()
+    system.prepare(n, m)
+    delta, smin, smax = system.conditioning(n, m)
+    att = Attempt(n, m, "failed", delta=delta, sigma_min=smin, sigma_max=smax)
+    npts = system.n_points
+    k = n + m
+    if active_set is None:
+        active_set = npts > max(300, 8 * k)
+    idx = system.spread_subset(max(4 * k, 64)) if active_set else np.arange(npts)
+    in_set = np.zeros(npts, dtype=bool)
+    in_set[idx] = True
+    norms_all = system.row_norms(n, m)
+    batch = max(32, 2 * k)
+    for _ in range(max_rounds):
+        A = system.rows(n, m, idx)
+        b = delta * np.concatenate([norms_all[idx], norms_all[npts + idx]])
+        sol = solve_qp(A, b, solver)
+        att.qp_solves += 1
+        att.solver_status = sol.status
+        c = sol.x if sol.status == "optimal" and _positive(A @ sol.x) else None
+        att.decided_by = solver
+        if sol.status == "optimal" and c is None:
+            att.messages.append(f"{solver} returned a point violating its own constraints")
+        if c is None and cross_check != "none":
+            c = _cross_check(A, cross_check)
+            att.qp_solves += 1
+            if c is not None:
+                att.decided_by = f"{solver}+{cross_check}"
+                if sol.status == "infeasible":
+                    att.disagreement = (
+                        f"{solver} reported infeasible, the {cross_check} check found a point"
+                    )
+        if c is None:
+            att.status = "infeasible" if sol.status == "infeasible" else "failed"
+            att.messages.append(sol.message)
+            att.active_set_size = int(idx.size)
+            break
+        # One full pass over every segment.
+        res = system.residuals(n, m, c)
+        need = res < (1.0 - 1e-6) * delta * norms_all
+        if not np.all(np.isfinite(res)):
+            need |= ~np.isfinite(res)
+        bad_pts = np.flatnonzero((need[:npts] | need[npts:]) & ~in_set)
+        if bad_pts.size == 0:
+            if np.all(res > 0):
+                att.status, att.c = "feasible", c
+            else:
+                att.status = "failed"
+                att.messages.append("solution violates rows of its own active set")
+            att.active_set_size = int(idx.size)
+            break
+        scaled = np.nan_to_num(res / norms_all, nan=-np.inf)
+        score = np.minimum(scaled[:npts], scaled[npts:])[bad_pts]
+        add = bad_pts[np.argsort(score)[:batch]]
+        in_set[add] = True
+        idx = np.flatnonzero(in_set)
+    else:
+        att.messages.append(f"active set did not converge in {max_rounds} rounds")
+        att.active_set_size = int(idx.size)
+    att.seconds = time.perf_counter() - t0
+    return att
+
+
+def _positive(v: Array) -> bool:
+    return bool(np.all(np.isfinite(v)) and np.all(v > 0))
+
+
+def _cross_check(A: Array, kind: str) -> Array | None:
+    """Look for c with A c > 0 in a second formulation; None if it finds none."""
+    norms = np.linalg.norm(A, axis=1)
+    An = A / norms[:, None]
+    if kind == "orth":
+        # Orthonormal columns: the QP sees a perfectly conditioned matrix.
+        Q, R = np.linalg.qr(An)
+        if np.min(np.abs(np.diag(R))) <= 1e-14 * np.max(np.abs(np.diag(R))):
+            return None
+        qn = np.linalg.norm(Q, axis=1)
+        sol = solve_qp(Q, 1e-3 * qn, "quadprog")
+        if sol.x is None:
+            return None
+        c = np.linalg.solve(R, sol.x)
+    elif kind == "lp":
+        c = _lp_margin(An)
+        if c is None:
+            return None
+    else:  # pragma: no cover - validated by callers
+        raise ValueError(kind)
+    return c if _positive(A @ c) else None
+
+
+def _lp_margin(An: Array) -> Array | None:
+    """max s  s.t.  An c >= s, -1 <= c <= 1 (HiGHS through SciPy)."""
+    from scipy.optimize import linprog
+
+    rows, k = An.shape
+    cost = np.zeros(k + 1)
+    cost[-1] = -1.0
+    a_ub = np.hstack([-An, np.ones((rows, 1))])
+    res = linprog(
+        cost, A_ub=a_ub, b_ub=np.zeros(rows), bounds=[(-1, 1)] * k + [(None, 1)], method="highs"
+    )
+    if res.status != 0 or res.x[-1] <= 0:
+        return None
+    return np.asarray(res.x[:k])
