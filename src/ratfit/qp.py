@@ -63,6 +63,8 @@ class ConstraintSystem:
         with self._lock:
             k = max(n_max, m_max)
             if k > self._k:
+                # Grow geometrically: a search asks for one more column at a time.
+                k = max(k, min(2 * self._k, k + 16))
                 self.B = self.space.design(self.t, k, window=True)
                 self._cum_sq = np.cumsum(self.B**2, axis=1)
                 self._k = k
