@@ -36,15 +36,19 @@ def addendum_segments(points: int = 1000, dt: float = 0.1) -> Segments:
     return Segments.from_relative(x, addendum_function(x), dt, names=("f",))
 
 
-def run_addendum(*, solver: str = "quadprog", jobs: int | None = None) -> dict[str, Any]:
+def run_addendum(
+    *, solver: str = "quadprog", cross_check: str = "orth", jobs: int | None = None
+) -> dict[str, Any]:
     """Fit the three bases at 20 + 20 and search the minimal Legendre total."""
     seg = addendum_segments()
     fits: dict[str, FitResult] = {}
     for basis in PAPER_TABLE:
-        fits[basis] = RationalFitter(basis=basis, n=20, m=20, solver=solver, jobs=jobs).fit(
-            seg
-        ).result_
-    minimal = RationalFitter(basis="legendre", solver=solver, jobs=jobs).fit(seg).result_
+        fits[basis] = RationalFitter(
+            basis=basis, n=20, m=20, solver=solver, cross_check=cross_check, jobs=jobs
+        ).fit(seg).result_
+    minimal = RationalFitter(
+        basis="legendre", solver=solver, cross_check=cross_check, jobs=jobs
+    ).fit(seg).result_
     return {"segments": seg, "fits": fits, "minimal": minimal}
 
 
@@ -60,7 +64,7 @@ def addendum_json(run: dict[str, Any]) -> dict[str, Any]:
             "poles_in_domain": v.poles_in_domain if v else None,
             "max_violation": v.max_violation if v else None,
             "max_rel_error": v.max_rel_error if v else None,
-            "solver_status": r.decided_by,
+            "solver_status": r.decided_by or r.solver,
             "paper": dict(zip(("delta", "sigma_min", "sigma_max"), PAPER_TABLE[basis],
                               strict=True)),
         }

@@ -139,6 +139,7 @@ class Attempt:
     m: int
     status: str  # "feasible" (QP-level), "infeasible", "failed"
     c: Array | None = None
+    raw_c: Array | None = None  # a solver's "optimal" point that violates its constraints
     solver_status: str = ""
     decided_by: str = ""
     disagreement: str = ""
@@ -209,6 +210,8 @@ def solve_fixed(
         if c is None:
             att.status = "infeasible" if sol.status == "infeasible" else "failed"
             att.messages.append(sol.message)
+            if sol.status == "optimal":
+                att.raw_c = sol.x  # kept so the failure can be verified and shown
             att.active_set_size = int(idx.size)
             break
         # One full pass over every segment.

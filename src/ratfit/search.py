@@ -69,7 +69,8 @@ class RationalFitter:
     cross_check : how an "infeasible" is checked before it is believed:
         "orth" (QP on orthonormalised rows), "lp" (HiGHS margin LP) or "none".
     active_set : None = automatic (large data), True or False.
-    jobs : threads for independent QPs (default: all cores).
+    jobs : threads for independent QPs. Default: all cores, used once QPs
+        take long enough for threads to pay off (> 20 ms each on average).
     callback : called with each :class:`~ratfit.qp.Attempt` (progress).
 
     Learned attributes: ``results_`` (one :class:`FitResult` per channel),
@@ -253,8 +254,9 @@ class _Search:
             active_set=self.f.active_set,
         )
         rf = ver = None
-        if att.c is not None:
-            rf = RationalFunction(self.space, att.c[:n], att.c[n:])
+        c = att.c if att.c is not None else att.raw_c
+        if c is not None:
+            rf = RationalFunction(self.space, c[:n], c[n:])
             ver = verify(rf, self.seg, channel=self.channel)
         return att, rf, ver
 
@@ -265,7 +267,7 @@ class _Search:
         n_max = max(s[0] for s in todo)
         m_max = max(s[1] for s in todo)
         self.system.prepare(n_max, m_max)
-        if self.jobs > 1 and len(todo) > 1:
+        if self._parallel() and len(todo) > 1:
             with ThreadPoolExecutor(min(self.jobs, len(todo))) as ex:
                 outs = list(ex.map(lambda s: self._run(*s), todo))
         else:
@@ -276,6 +278,18 @@ class _Search:
                 self.infeasible.append(s)
             if self.f.callback is not None:
                 self.f.callback(out[0])
+
+    def _parallel(self) -> bool:
+        """Threads pay off only when QPs are slow: on small problems the Python
+        overhead between solver calls holds the GIL and two threads run slower
+        than one (measured in benchmarks/bench_core.py). With ``jobs=None`` the
+        pool is used once the QPs so far average more than 20 ms."""
+        if self.jobs <= 1:
+            return False
+        if self.f.jobs is not None:
+            return True
+        secs = [c[0].seconds for c in self.cache.values()]
+        return bool(secs) and sum(secs) / len(secs) > 0.02
 
     def ok(self, s: tuple[int, int]) -> bool:
         self.test_many([s])
@@ -309,7 +323,8 @@ class _Search:
         # 1. balanced probe, `jobs` totals at a time.
         total = lo
         while best is None and total <= hi:
-            probes = [_balanced(t) for t in range(total, min(hi, total + self.jobs - 1) + 1)]
+            width = self.jobs if self._parallel() else 1
+            probes = [_balanced(t) for t in range(total, min(hi, total + width - 1) + 1)]
             self.test_many(probes)
             for s in probes:
                 if self.ok(s):
@@ -326,7 +341,8 @@ class _Search:
                 break
             cols = []
             mm = m
-            while len(cols) < self.jobs and target - mm >= 1:
+            width = self.jobs if self._parallel() else 1
+            while len(cols) < width and target - mm >= 1:
                 if not self.ruled_out(target - mm, mm):
                     cols.append((target - mm, mm))
                 mm += 1
