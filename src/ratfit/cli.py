@@ -30,6 +30,12 @@ class _Main(click.Group):
             return super().invoke(ctx)
         except (click.exceptions.Exit, click.ClickException, click.Abort):
             raise
+        except BrokenPipeError:
+            # The reader went away (``ratfit eval ... | head``): not an input error.
+            # Point stdout at devnull so the interpreter's final flush stays quiet.
+            devnull = os.open(os.devnull, os.O_WRONLY)
+            os.dup2(devnull, sys.stdout.fileno())
+            ctx.exit(141)
         except RatfitError as exc:
             click.echo(f"error: {exc}", err=True)
             ctx.exit(EXIT_BAD_INPUT)
@@ -159,7 +165,11 @@ def fit_cmd(input_path: Path, output: Path | None, fmt: str | None, basis: str, 
     if n is not None and total is not None:
         raise click.UsageError("--n/--m and --total are exclusive")
     data = read_data(input_path, fmt=fmt)
-    seg = data.segments(dt=dt, abs_width=abs_width)
+    try:
+        seg = data.segments(dt=dt, abs_width=abs_width)
+    except RatfitError as exc:
+        msg = str(exc)
+        raise type(exc)(msg if str(input_path) in msg else f"{input_path}: {msg}") from None
     if channels:
         from .segments import Segments
 
@@ -270,7 +280,7 @@ def eval_cmd(fit_path: Path, input_path: Path, output: Path | None, fmt: str | N
         )
     vals = saved(data.x)
     names = [c.name for c in saved.channels]
-    if output is not None and output.suffix == ".npy":
+    if output is not None and output.suffix.lower() == ".npy":
         with atomic_open(output, "wb") as fh:
             np.save(fh, vals)
         return

@@ -162,6 +162,16 @@ class RationalFitter:
             )
         if self.jobs is not None and (not _is_int(self.jobs) or self.jobs < 1):
             raise InputError(f"jobs must be an integer >= 1, got {self.jobs!r}")
+        zero = seg.hi == seg.lo
+        if zero.any():
+            i, j = (int(v) for v in np.argwhere(zero)[0])
+            raise InputError(
+                f"{int(zero.sum())} segment(s) have zero width (first: row {i}, channel "
+                f"{seg.names[j]}, lo = hi = {float(seg.lo[i, j])!r}); a rational cannot be "
+                "verified to hit a value exactly in floating point: give the segments an "
+                "absolute floor (CLI: add --abs-width W next to --dt; each segment takes "
+                "the larger)"
+            )
         domain = seg.bounds() if self.domain is None else np.asarray(self.domain, float)
         domain = np.asarray(domain, dtype=float).reshape(-1, 2)
         if domain.shape[0] != seg.dim:

@@ -101,7 +101,7 @@ class Segments:
         if x.shape[0] > 1 and np.any(span == 0):
             dim = int(np.flatnonzero(span == 0)[0])
             raise InputError(
-                f"x is constant in dimension {dim} (value {x[0, dim]!r}); "
+                f"x is constant in dimension {dim} (value {float(x[0, dim])!r}); "
                 "drop that dimension or give bounds explicitly"
             )
         names = tuple(self.names) or tuple(f"y{j}" for j in range(lo.shape[1]))
