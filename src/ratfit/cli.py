@@ -145,6 +145,9 @@ def _fmt(v: float | None) -> str:
 @click.option("--cross-check", type=click.Choice(["orth", "lp", "none"]), default="orth",
               show_default=True, help="How a solver's 'infeasible' is checked.")
 @click.option("--jobs", type=int, default=None, help="Threads for independent QPs.")
+@click.option("--domain", "domain", type=(float, float), multiple=True, metavar="LO HI",
+              help="Bounds mapped to [-1, 1], one per input dimension, in order "
+                   "(default: the data bounds).")
 @click.option("--channel", "channels", multiple=True, type=int,
               help="Fit only these channels (0-based; repeatable).")
 @click.option("--monomial/--no-monomial", default=True, show_default=True,
@@ -154,7 +157,8 @@ def fit_cmd(input_path: Path, output: Path | None, fmt: str | None, basis: str, 
             dt: float | None, abs_width: float | None, n: int | None, m: int | None,
             total: int | None, min_total: int, max_total: int | None, strategy: str,
             split_rule: str, solver: str, cross_check: str, jobs: int | None,
-            channels: tuple[int, ...], monomial: bool, as_json: bool) -> None:
+            domain: tuple[tuple[float, float], ...], channels: tuple[int, ...], monomial: bool,
+            as_json: bool) -> None:
     """Fit INPUT (ALTA text data, CSV, .npz or NIST StRD) with the fewest coefficients."""
     from .dataio import read_data
     from .fitfile import file_sha256, fit_document, save_fit
@@ -184,7 +188,7 @@ def fit_cmd(input_path: Path, output: Path | None, fmt: str | None, basis: str, 
         fitter = RationalFitter(
             basis=basis, index_set=index_set, n=n, m=m, total=total, min_total=min_total,
             max_total=max_total, strategy=strategy, split_rule=split_rule, solver=solver,
-            cross_check=cross_check, jobs=jobs, callback=cb,
+            cross_check=cross_check, jobs=jobs, callback=cb, domain=list(domain) or None,
         ).fit(seg)
     finally:
         stop()

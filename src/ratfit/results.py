@@ -40,6 +40,7 @@ class FitResult:
     seconds: float
     solver: str
     decided_by: str
+    solver_status: str = ""
     channel: str = "y0"
     history: tuple[dict, ...] = field(default=())
     disagreements: tuple[str, ...] = field(default=())
@@ -93,6 +94,7 @@ class FitResult:
             "active_set_size": self.active_set_size,
             "qp_solves": self.qp_solves,
             "solver": self.solver,
+            "solver_status": self.solver_status,
             "decided_by": self.decided_by,
             "disagreements": list(self.disagreements),
             "seconds": round(self.seconds, 6),

@@ -435,6 +435,7 @@ class _Search:
             seconds=secs,
             solver=self.f.solver,
             decided_by=att.decided_by,
+            solver_status=att.solver_status,
             channel=name,
             history=history,
             disagreements=disagreements,
