@@ -233,7 +233,7 @@ def _fit_json(results, output: Path | None) -> dict[str, Any]:
     if len(per) == 1:
         doc = dict(per[0])
     else:
-        vals = [p for p in per]
+        vals = per
         doc = {
             "n": [p["n"] for p in vals],
             "m": [p["m"] for p in vals],

@@ -111,7 +111,7 @@ def _via_fft(space: PolynomialSpace, T: Array) -> Array:
         R = float(np.max(np.abs(space.domain[k])))
         z = R * np.exp(2j * np.pi * np.arange(K) / K)
         t = a[k] * z + b[k]
-        evals.append(_complex_vander(space, t, K - 1))  # E[j, a] = b_a(t_j)
+        evals.append(space.family.vander(t, K - 1))  # E[j, a] = b_a(t_j), complex t
         radii.append(R)
     vals = _apply_axes(T.astype(complex), evals)
     coef = np.fft.fftn(vals) / vals.size
@@ -120,10 +120,6 @@ def _via_fft(space: PolynomialSpace, T: Array) -> Array:
         shape[k] = T.shape[k]
         coef = coef / (R ** np.arange(T.shape[k], dtype=float)).reshape(shape)
     return coef.real
-
-
-def _complex_vander(space: PolynomialSpace, t: NDArray, deg: int) -> NDArray:
-    return space.family.vander(t, deg)
 
 
 def to_monomial(rf: RationalFunction, x: ArrayLike, *, warn_rtol: float = 1e-8) -> MonomialForm:
@@ -140,7 +136,6 @@ def to_monomial(rf: RationalFunction, x: ArrayLike, *, warn_rtol: float = 1e-8) 
         xa = xa[:, None]
     ref = rf(xa)
     scale = float(np.max(np.abs(ref[np.isfinite(ref)]), initial=0.0)) or 1.0
-    best: MonomialForm | None = None
     errors: dict[str, float] = {}
     forms = {}
     for method, fn in (("numpy", _via_numpy), ("fft", _via_fft)):
