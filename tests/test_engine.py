@@ -25,7 +25,7 @@ def test_multi_indices_graded_orders():
     assert tot.tolist() == [[0, 0], [1, 0], [0, 1], [2, 0], [1, 1], [0, 2]]
     ten = multi_indices(2, 9, "tensor")
     assert sorted(map(tuple, ten.tolist())) == [(i, j) for i in range(3) for j in range(3)]
-    assert ten[:4].tolist() == [[0, 0], [1, 1], [1, 0], [0, 1]]
+    assert ten[:4].tolist() == [[0, 0], [1, 0], [0, 1], [1, 1]]
     assert multi_indices(3, 20, "total").sum(axis=1).max() == 3  # 1 + 3 + 6 + 10 terms
     assert multi_indices(1, 5).ravel().tolist() == [0, 1, 2, 3, 4]
 

@@ -85,11 +85,12 @@ def get_family(name: str) -> Family:
 def multi_indices(dim: int, count: int, index_set: str = "total") -> NDArray[np.int64]:
     """The first ``count`` multi-indices of ``dim`` variables in graded order.
 
-    ``total``: by total degree |a|_1, then reverse-lexicographic inside a shell
-    (x0 varies slowest... e.g. (1,0) before (0,1)). ``tensor``: by max degree
-    |a|_inf, same tie order. Any prefix of either order is a downward-closed set
-    only at complete shells; the QP does not need that, monomial conversion does
-    not either (degrees never grow under a change of basis).
+    ``total``: by total degree |a|_1, then by descending power of x0 inside a
+    shell, e.g. (1,0) before (0,1). ``tensor``: by max degree |a|_inf, then by
+    total degree, then the same tie order, e.g. (1,0), (0,1), (1,1). Any prefix
+    of either order is a downward-closed set only at complete shells; neither the
+    QP nor the monomial conversion needs that (degrees never grow under a change
+    of basis).
     """
     if index_set not in INDEX_SETS:
         raise InputError(f"unknown index set {index_set!r}; choose one of {', '.join(INDEX_SETS)}")
@@ -112,7 +113,8 @@ def _shell(dim: int, s: int, index_set: str) -> list[tuple[int, ...]]:
         cand = [a for a in product(range(s + 1), repeat=dim) if sum(a) == s]
     else:
         cand = [a for a in product(range(s + 1), repeat=dim) if max(a) == s]
-    return sorted(cand, reverse=True)
+    # lower total degree first (tensor shells), then x0's power descending
+    return sorted(cand, key=lambda a: (sum(a), tuple(-v for v in a)))
 
 
 class PolynomialSpace:
