@@ -102,7 +102,7 @@ class Segments:
             dim = int(np.flatnonzero(span == 0)[0])
             raise InputError(
                 f"x is constant in dimension {dim} (value {float(x[0, dim])!r}); "
-                "drop that dimension or give bounds explicitly"
+                "a polynomial basis in that variable is degenerate: drop that column"
             )
         names = tuple(self.names) or tuple(f"y{j}" for j in range(lo.shape[1]))
         if len(names) != lo.shape[1]:
