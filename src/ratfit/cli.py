@@ -233,24 +233,23 @@ def _fit_json(results, output: Path | None) -> dict[str, Any]:
     if len(per) == 1:
         doc = dict(per[0])
     else:
-        vals = per
         doc = {
-            "n": [p["n"] for p in vals],
-            "m": [p["m"] for p in vals],
-            "total": sum(p["total"] for p in vals),
-            "basis": vals[0]["basis"],
-            "verified": all(p["verified"] for p in vals),
-            "success": all(p["success"] for p in vals),
-            "max_violation": _worst(vals, "max_violation"),
-            "linf": _worst(vals, "linf"),
-            "l2": _worst(vals, "l2"),
-            "max_rel_error": _worst(vals, "max_rel_error"),
-            "delta": min((p["delta"] for p in vals if p["delta"] is not None), default=None),
-            "sigma_min": min((p["sigma_min"] for p in vals if p["sigma_min"] is not None),
+            "n": [p["n"] for p in per],
+            "m": [p["m"] for p in per],
+            "total": sum(p["total"] for p in per),
+            "basis": per[0]["basis"],
+            "verified": all(p["verified"] for p in per),
+            "success": all(p["success"] for p in per),
+            "max_violation": _worst(per, "max_violation"),
+            "linf": _worst(per, "linf"),
+            "l2": _worst(per, "l2"),
+            "max_rel_error": _worst(per, "max_rel_error"),
+            "delta": min((p["delta"] for p in per if p["delta"] is not None), default=None),
+            "sigma_min": min((p["sigma_min"] for p in per if p["sigma_min"] is not None),
                              default=None),
-            "sigma_max": max((p["sigma_max"] for p in vals if p["sigma_max"] is not None),
+            "sigma_max": max((p["sigma_max"] for p in per if p["sigma_max"] is not None),
                              default=None),
-            "seconds": sum(p["seconds"] for p in vals),
+            "seconds": sum(p["seconds"] for p in per),
         }
     doc["channels"] = per
     doc["output"] = str(output) if output else None
@@ -345,7 +344,7 @@ def demo_addendum(outdir: Path, solver: str, cross_check: str, jobs: int | None,
             table.add_row(
                 basis, f"{b['delta']:.2g} ({pd:.2g})", f"{b['sigma_min']:.2g} ({ps:.2g})",
                 f"{b['sigma_max']:.0f} ({pS:.0f})", "yes" if b["verified"] else "NO",
-                str(b["poles_in_domain"]), b["solver_status"],
+                str(b["poles_in_domain"]), b["decided_by"],
             )
         con.print(table)
         mn = doc["minimal"]

@@ -64,7 +64,8 @@ def addendum_json(run: dict[str, Any]) -> dict[str, Any]:
             "poles_in_domain": v.poles_in_domain if v else None,
             "max_violation": v.max_violation if v else None,
             "max_rel_error": v.max_rel_error if v else None,
-            "solver_status": r.decided_by or r.solver,
+            "solver_status": r.solver_status,
+            "decided_by": r.decided_by or r.solver,
             "paper": dict(zip(("delta", "sigma_min", "sigma_max"), PAPER_TABLE[basis],
                               strict=True)),
         }

@@ -301,6 +301,10 @@ class _Search:
         secs = [c[0].seconds for c in self.cache.values()]
         return bool(secs) and sum(secs) / len(secs) > 0.02
 
+    def _batch_width(self) -> int:
+        """How many splits to test at once: speculative work only pays when parallel."""
+        return self.jobs if self._parallel() else 1
+
     def ok(self, s: tuple[int, int]) -> bool:
         self.test_many([s])
         ver = self.cache[s][2]
@@ -333,7 +337,7 @@ class _Search:
         # 1. balanced probe, `jobs` totals at a time.
         total = lo
         while best is None and total <= hi:
-            width = self.jobs if self._parallel() else 1
+            width = self._batch_width()
             probes = [_balanced(t) for t in range(total, min(hi, total + width - 1) + 1)]
             self.test_many(probes)
             for s in probes:
@@ -351,7 +355,7 @@ class _Search:
                 break
             cols = []
             mm = m
-            width = self.jobs if self._parallel() else 1
+            width = self._batch_width()
             while len(cols) < width and target - mm >= 1:
                 if not self.ruled_out(target - mm, mm):
                     cols.append((target - mm, mm))
