@@ -21,6 +21,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from .bases import PolynomialSpace
+from .rational import RationalFunction
 from .segments import Segments
 from .solvers import solve_qp
 
@@ -89,29 +90,42 @@ class ConstraintSystem:
     def columns(self, n: int, m: int) -> NDArray[np.int64]:
         return np.r_[np.arange(n), self._k + np.arange(m)]
 
-    # -- the matrix, by blocks of points --------------------------------------
-    def rows(self, n: int, m: int, idx: NDArray[np.int64] | None = None) -> Array:
-        """A(n, m) restricted to points ``idx``: lo-rows first, then hi-rows."""
-        b = self.B if idx is None else self.B[idx]
-        lo = self.lo if idx is None else self.lo[idx]
-        hi = self.hi if idx is None else self.hi[idx]
-        bp, bq = b[:, :n], b[:, :m]
-        return np.vstack(
-            [np.hstack([bp, -lo[:, None] * bq]), np.hstack([-bp, hi[:, None] * bq])]
-        )
+    # -- the matrix, by rows ----------------------------------------------------
+    # Row r < N is the lo-row of point r, row N + r its hi-row. Subclasses that
+    # add rows (derivative constraints, extra grid points) override n_rows,
+    # rows, row_norms, residuals, initial_rows and _tsqr; solve_fixed uses
+    # nothing else.
+    @property
+    def n_rows(self) -> int:
+        return 2 * self.n_points
 
-    def row_norms(self, n: int, m: int, idx: NDArray[np.int64] | None = None) -> Array:
-        cs = self._cum_sq if idx is None else self._cum_sq[idx]
-        lo = self.lo if idx is None else self.lo[idx]
-        hi = self.hi if idx is None else self.hi[idx]
-        sp, sq = cs[:, n - 1], cs[:, m - 1]
-        return np.sqrt(np.concatenate([sp + lo**2 * sq, sp + hi**2 * sq]))
+    def rows(self, n: int, m: int, ridx: NDArray[np.int64] | None = None) -> Array:
+        """Rows ``ridx`` of A(n, m) (all rows when None)."""
+        if ridx is None:
+            ridx = np.arange(self.n_rows)
+        pts = ridx % self.n_points
+        sign = np.where(ridx < self.n_points, 1.0, -1.0)[:, None]
+        b = self.B[pts]
+        w = np.where(ridx < self.n_points, -self.lo[pts], self.hi[pts])[:, None]
+        return np.hstack([sign * b[:, :n], w * b[:, :m]])
+
+    def row_norms(self, n: int, m: int) -> Array:
+        sp, sq = self._cum_sq[:, n - 1], self._cum_sq[:, m - 1]
+        return np.sqrt(np.concatenate([sp + self.lo**2 * sq, sp + self.hi**2 * sq]))
 
     def residuals(self, n: int, m: int, c: Array) -> Array:
-        """A(n, m) c for every row (2N,), without forming A."""
+        """A(n, m) c for every row, without forming A."""
         p = self.B[:, :n] @ c[:n]
         q = self.B[:, :m] @ c[n:]
         return np.concatenate([p - self.lo * q, self.hi * q - p])
+
+    def initial_rows(self, size: int) -> NDArray[np.int64]:
+        """Both rows of ``size`` points spread along the data (all rows if small)."""
+        pts = self.spread_subset(size)
+        return np.concatenate([pts, self.n_points + pts])
+
+    def to_rational(self, n: int, m: int, c: Array) -> RationalFunction:
+        return RationalFunction(self.space, c[:n], c[n:])
 
     def conditioning(self, n: int, m: int) -> tuple[float, float, float]:
         """(delta, sigma_min, sigma_max) of the full A(n, m)."""
@@ -179,18 +193,19 @@ def solve_fixed(
     system.prepare(n, m)
     delta, smin, smax = system.conditioning(n, m)
     att = Attempt(n, m, "failed", delta=delta, sigma_min=smin, sigma_max=smax)
-    npts = system.n_points
+    nrows = system.n_rows
     k = n + m
     if active_set is None:
-        active_set = npts > max(300, 8 * k)
-    idx = system.spread_subset(max(4 * k, 64)) if active_set else np.arange(npts)
-    in_set = np.zeros(npts, dtype=bool)
+        active_set = system.n_points > max(300, 8 * k)
+    idx = system.initial_rows(max(4 * k, 64)) if active_set else np.arange(nrows)
+    in_set = np.zeros(nrows, dtype=bool)
     in_set[idx] = True
+    idx = np.flatnonzero(in_set)
     norms_all = system.row_norms(n, m)
-    batch = max(32, 2 * k)
+    batch = max(64, 4 * k)
     for _ in range(max_rounds):
         A = system.rows(n, m, idx)
-        b = delta * np.concatenate([norms_all[idx], norms_all[npts + idx]])
+        b = delta * norms_all[idx]
         sol = solve_qp(A, b, solver)
         att.qp_solves += 1
         att.solver_status = sol.status
@@ -214,13 +229,11 @@ def solve_fixed(
                 att.raw_c = sol.x  # kept so the failure can be verified and shown
             att.active_set_size = int(idx.size)
             break
-        # One full pass over every segment.
+        # One full pass over every row.
         res = system.residuals(n, m, c)
-        need = res < (1.0 - 1e-6) * delta * norms_all
-        if not np.all(np.isfinite(res)):
-            need |= ~np.isfinite(res)
-        bad_pts = np.flatnonzero((need[:npts] | need[npts:]) & ~in_set)
-        if bad_pts.size == 0:
+        need = ~(res >= (1.0 - 1e-6) * delta * norms_all)  # NaN counts as needed
+        bad = np.flatnonzero(need & ~in_set)
+        if bad.size == 0:
             if np.all(res > 0):
                 att.status, att.c = "feasible", c
             else:
@@ -228,10 +241,8 @@ def solve_fixed(
                 att.messages.append("solution violates rows of its own active set")
             att.active_set_size = int(idx.size)
             break
-        scaled = np.nan_to_num(res / norms_all, nan=-np.inf)
-        score = np.minimum(scaled[:npts], scaled[npts:])[bad_pts]
-        add = bad_pts[np.argsort(score)[:batch]]
-        in_set[add] = True
+        scaled = np.nan_to_num(res[bad] / norms_all[bad], nan=-np.inf)
+        in_set[bad[np.argsort(scaled)[:batch]]] = True
         idx = np.flatnonzero(in_set)
     else:
         att.messages.append(f"active set did not converge in {max_rounds} rounds")

@@ -184,6 +184,13 @@ class RationalFitter:
             raise InputError(f"point {i} ({seg.x[i].tolist()}) lies outside the given domain")
         return PolynomialSpace(self.basis, domain, self.index_set)
 
+    # -- extension points (subclasses: monotone CDFs, other formulations) ------------
+    def _make_system(self, space: PolynomialSpace, seg: Segments, j: int) -> ConstraintSystem:
+        return ConstraintSystem(space, seg, j)
+
+    def _verify(self, rf: RationalFunction, seg: Segments, j: int) -> Verification:
+        return verify(rf, seg, channel=j)
+
     # -- fitting -----------------------------------------------------------------------
     def fit(self, segments: Segments) -> RationalFitter:
         """Fit every channel of ``segments``; returns self."""
@@ -252,7 +259,7 @@ class _Search:
         self.space = space
         self.seg = seg
         self.channel = j
-        self.system = ConstraintSystem(space, seg, j)
+        self.system = fitter._make_system(space, seg, j)
         self.cache: dict[tuple[int, int], Candidate] = {}
         self.infeasible: list[tuple[int, int]] = []
         self.jobs = int(fitter.jobs or os.cpu_count() or 1)
@@ -266,8 +273,8 @@ class _Search:
         rf = ver = None
         c = att.c if att.c is not None else att.raw_c
         if c is not None:
-            rf = RationalFunction(self.space, c[:n], c[n:])
-            ver = verify(rf, self.seg, channel=self.channel)
+            rf = self.system.to_rational(n, m, c)
+            ver = self.f._verify(rf, self.seg, self.channel)
         return att, rf, ver
 
     def test_many(self, splits: Iterable[tuple[int, int]]) -> None:
