@@ -134,7 +134,8 @@ def test_demo_minimal_total_below_paper_and_verified():
     # independent re-check of every segment with numpy's legval
     x = seg.x[:, 0]
     t = (x - 5) / 5
-    vals = L.legval(t, r.rational.p) / L.legval(t, r.rational.q)
+    fam = r.rational.to_family()  # data-orthonormal (Arnoldi) coefficients -> Legendre
+    vals = L.legval(t, fam.p) / L.legval(t, fam.q)
     assert np.all(vals >= seg.lo[:, 0]) and np.all(vals <= seg.hi[:, 0])
     # minimality as far as the solver can tell: no split of total - 1 is verified
     below = ratfit.fit(seg, total=r.total - 1)

@@ -49,7 +49,8 @@ def test_every_success_satisfies_every_segment(data):
         kind = {"legendre": np.polynomial.Legendre, "chebyshev": np.polynomial.Chebyshev,
                 "monomial": np.polynomial.Polynomial}[basis]
         dom = [x.min(), x.max()]
-        vals = kind(r.rational.p, domain=dom)(x) / kind(r.rational.q, domain=dom)(x)
+        fam = r.rational.to_family()  # from data-orthonormal coefficients, if any
+        vals = kind(fam.p, domain=dom)(x) / kind(fam.q, domain=dom)(x)
         assert np.all(np.isfinite(vals))
         assert np.all(vals >= seg.lo[:, 0]) and np.all(vals <= seg.hi[:, 0])
         assert r.verification.poles_in_domain == 0

@@ -14,7 +14,7 @@ import json
 import os
 import platform
 import sys
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -30,7 +30,7 @@ from .results import FitResult
 __all__ = ["FORMAT", "VERSION", "SavedFit", "SavedChannel", "fit_document", "load_fit", "save_fit"]
 
 FORMAT = "ratfit.fit"
-VERSION = 1
+VERSION = 2  # 2: optional p_basis / q_basis (Arnoldi recurrences) per channel
 
 
 @dataclass(frozen=True)
@@ -47,6 +47,8 @@ class SavedFit:
     channels: tuple[SavedChannel, ...]
     provenance: dict[str, Any]
     version: int
+    # Top-level keys an application added with fit_document(extra=...) (e.g. "brdf").
+    extra: dict[str, Any] = field(default_factory=dict)
 
     def __call__(self, x: ArrayLike) -> NDArray[np.float64]:
         """Values (N, k) of every channel at points x."""
@@ -66,8 +68,13 @@ def fit_document(
     *,
     monomial: list[dict | None] | None = None,
     provenance: dict[str, Any] | None = None,
+    extra: dict[str, Any] | None = None,
 ) -> dict[str, Any]:
-    """The JSON document for verified ``results`` (one per channel)."""
+    """The JSON document for verified ``results`` (one per channel).
+
+    ``extra`` adds application keys at the top level (e.g. ``"brdf"``: the
+    parametrization of the inputs); they come back as ``SavedFit.extra``.
+    """
     from . import __version__
 
     if not results:
@@ -91,6 +98,7 @@ def fit_document(
                 "q": rf.q.tolist(),
                 "p_indices": space.indices(rf.n).tolist(),
                 "q_indices": space.indices(rf.m).tolist(),
+                **rf.bases_dict(),
                 "diagnostics": r.summary(),
                 "monomial": (monomial or [None] * len(results))[i],
             }
@@ -103,13 +111,18 @@ def fit_document(
         "command": sys.argv,
     }
     prov.update(provenance or {})
-    return {
+    doc = {
         "format": FORMAT,
         "version": VERSION,
         "space": space.to_dict(),
         "channels": chans,
         "provenance": prov,
     }
+    for key, val in (extra or {}).items():
+        if key in doc:
+            raise InputError(f"extra key {key!r} clashes with a fit file key")
+        doc[key] = val
+    return doc
 
 
 def save_fit(path: str | os.PathLike[str], document: dict[str, Any]) -> None:
@@ -148,7 +161,7 @@ def parse_fit(doc: Any, where: str = "fit") -> SavedFit:
         space = PolynomialSpace.from_dict(doc["space"])
         chans = []
         for c in doc["channels"]:
-            rf = RationalFunction(space, c["p"], c["q"])
+            rf = RationalFunction.from_dict({**c, "space": None}, space)
             for key, count in (("p_indices", rf.n), ("q_indices", rf.m)):
                 if key in c and c[key] != space.indices(count).tolist():
                     raise FileFormatError(f"{where}: {key} of channel {c['name']!r} do not match")
@@ -162,4 +175,8 @@ def parse_fit(doc: Any, where: str = "fit") -> SavedFit:
         raise FileFormatError(f"{where}: malformed fit file ({what})") from None
     if not chans:
         raise FileFormatError(f"{where}: fit file has no channels")
-    return SavedFit(space, tuple(chans), doc.get("provenance", {}), version)
+    extra = {k: v for k, v in doc.items() if k not in _CORE_KEYS}
+    return SavedFit(space, tuple(chans), doc.get("provenance", {}), version, extra)
+
+
+_CORE_KEYS = frozenset({"format", "version", "space", "channels", "provenance"})

@@ -130,11 +130,12 @@ def to_monomial(rf: RationalFunction, x: ArrayLike, *, warn_rtol: float = 1e-8) 
     route differs from it by more than ``warn_rtol`` relative to max |r|.
     """
     space = rf.space
-    Tp, Tq = space.tensor_coef(rf.p), space.tensor_coef(rf.q)
     xa = np.asarray(x, dtype=float)
     if xa.ndim == 1:
         xa = xa[:, None]
     ref = rf(xa)
+    fam = rf.to_family()
+    Tp, Tq = space.tensor_coef(fam.p), space.tensor_coef(fam.q)
     scale = float(np.max(np.abs(ref[np.isfinite(ref)]), initial=0.0)) or 1.0
     errors: dict[str, float] = {}
     forms = {}

@@ -25,7 +25,9 @@ from .rational import RationalFunction
 from .segments import Segments
 from .solvers import solve_qp
 
-__all__ = ["Attempt", "ConstraintSystem", "CROSS_CHECKS", "solve_fixed"]
+__all__ = [
+    "ArnoldiSystem", "Attempt", "ConstraintSystem", "CROSS_CHECKS", "sk_denominator", "solve_fixed",
+]
 
 Array = NDArray[np.float64]
 CROSS_CHECKS = ("orth", "lp", "none")
@@ -156,6 +158,7 @@ class Attempt:
     raw_c: Array | None = None  # a solver's "optimal" point that violates its constraints
     solver_status: str = ""
     decided_by: str = ""
+    formulation: str = "basis"  # "basis" (the seed's matrix) or "arnoldi"
     disagreement: str = ""
     delta: float = float("nan")
     sigma_min: float = float("nan")
@@ -173,6 +176,7 @@ class Attempt:
         return {
             "n": self.n, "m": self.m, "status": self.status,
             "solver_status": self.solver_status, "decided_by": self.decided_by,
+            "formulation": self.formulation,
             "disagreement": self.disagreement, "qp_solves": self.qp_solves,
             "active_set_size": self.active_set_size, "seconds": round(self.seconds, 6),
         }
@@ -292,3 +296,156 @@ def _lp_margin(An: Array) -> Array | None:
     if res.status != 0 or res.x[-1] <= 0:
         return None
     return np.asarray(res.x[:k])
+
+
+class ArnoldiSystem(ConstraintSystem):
+    """P(n, m) for one split in bases orthonormal on the weighted data.
+
+    p = sum a_k phi_k and q = sum b_k psi_k, with phi orthonormal for the
+    weights v / s and psi for v, where s_i = max(|mid_i|, half-width_i) is the
+    scale of segment i and v_i = 1 / |q0(x_i)| for a guess q0 of the
+    denominator. Each point's two rows are divided by s_i / v_i (positive row
+    scaling: the feasible set is the seed's, exactly). When q0 is close to a
+    feasible q, q / q0 ~ 1 at every point and the feasible margin is of the
+    order of the relative segment width, where the same problem written with
+    Legendre columns has margins of 1e-10 and below.
+
+    q0 comes from a few Sanathanan-Koerner steps: the linearised least-squares
+    fit min sum v_i^2 |p(x_i) - mid_i q(x_i)|^2 / s_i^2, re-weighted with the
+    new q each time (:func:`sk_denominator`).
+    """
+
+    def __init__(self, space: PolynomialSpace, seg: Segments, channel: int, n: int, m: int,
+                 q0: Array | None = None) -> None:
+        super().__init__(space, seg, channel)
+        self.n, self.m = n, m
+        mid = 0.5 * (self.lo + self.hi)
+        half = 0.5 * (self.hi - self.lo)
+        self.scale = np.maximum(np.abs(mid), half)
+        if q0 is None:
+            v = np.ones(self.n_points)
+        else:
+            aq = np.abs(q0)
+            v = 1.0 / np.maximum(aq, 1e-14 * float(np.max(aq)))
+        self.v = v / np.max(v)
+        from .arnoldi import ArnoldiBasis
+
+        self.p_basis, self.U = ArnoldiBasis.build(space, self.t, self.v / self.scale, n)
+        self.q_basis, self.V = ArnoldiBasis.build(space, self.t, self.v, m)
+        self.lo_s = self.lo / self.scale
+        self.hi_s = self.hi / self.scale
+        self._cond = self._conditioning()
+        self._norms = np.sqrt(np.concatenate([
+            np.sum(self.U**2, 1) + self.lo_s**2 * np.sum(self.V**2, 1),
+            np.sum(self.U**2, 1) + self.hi_s**2 * np.sum(self.V**2, 1),
+        ]))
+
+    def _conditioning(self) -> tuple[float, float, float]:
+        """(delta, sigma_min, sigma_max) of A from its Gram matrix, which with
+        orthonormal U, V is cheap for any number of points; a Gram matrix only
+        resolves sigma_min / sigma_max above ~1e-7, so a chunked QR takes over
+        below that."""
+        U, V = self.U, self.V
+        cross = -U.T @ ((self.lo_s + self.hi_s)[:, None] * V)
+        G = np.block([
+            [2.0 * np.eye(U.shape[1]), cross],
+            [cross.T, V.T @ ((self.lo_s**2 + self.hi_s**2)[:, None] * V)],
+        ])
+        ev = np.linalg.eigvalsh(G)
+        smax = float(np.sqrt(max(ev[-1], 0.0)))
+        smin = float(np.sqrt(max(ev[0], 0.0)))
+        if smax > 0 and smin > 1e-6 * smax:
+            return smin / smax, smin, smax
+        acc = None
+        for start in range(0, self.n_points, _CHUNK):
+            rid = np.arange(start, min(start + _CHUNK, self.n_points))
+            block = self.rows(self.n, self.m, np.concatenate([rid, self.n_points + rid]))
+            acc = np.linalg.qr(block if acc is None else np.vstack([acc, block]), mode="r")
+        sv = np.linalg.svd(acc, compute_uv=False)
+        return (float(sv[-1] / sv[0]) if sv[0] > 0 else 0.0), float(sv[-1]), float(sv[0])
+
+    def _check(self, n: int, m: int) -> None:
+        if (n, m) != (self.n, self.m):
+            raise ValueError(f"this ArnoldiSystem is for (n, m) = ({self.n}, {self.m})")
+
+    def prepare(self, n_max: int, m_max: int) -> None:  # everything is built up front
+        pass
+
+    def conditioning(self, n: int, m: int) -> tuple[float, float, float]:
+        self._check(n, m)
+        return self._cond
+
+    def rows(self, n: int, m: int, ridx: NDArray[np.int64] | None = None) -> Array:
+        self._check(n, m)
+        if ridx is None:
+            ridx = np.arange(self.n_rows)
+        pts = ridx % self.n_points
+        first = ridx < self.n_points
+        sign = np.where(first, 1.0, -1.0)[:, None]
+        w = np.where(first, -self.lo_s[pts], self.hi_s[pts])[:, None]
+        return np.hstack([sign * self.U[pts], w * self.V[pts]])
+
+    def row_norms(self, n: int, m: int) -> Array:
+        self._check(n, m)
+        return self._norms
+
+    def residuals(self, n: int, m: int, c: Array) -> Array:
+        self._check(n, m)
+        p = self.U @ c[:n]
+        q = self.V @ c[n:]
+        return np.concatenate([p - self.lo_s * q, self.hi_s * q - p])
+
+    def to_rational(self, n: int, m: int, c: Array) -> RationalFunction:
+        self._check(n, m)
+        return RationalFunction(self.space, c[:n], c[n:], p_basis=self.p_basis,
+                                q_basis=self.q_basis)
+
+
+def sk_denominator(space: PolynomialSpace, seg: Segments, channel: int, n: int, m: int,
+                   steps: int = 4, max_points: int = 4000) -> Array | None:
+    """Values at every data point of a denominator guess for (n, m), from
+    re-weighted linearised least squares (Sanathanan-Koerner) on at most
+    ``max_points`` points spread over the data. None if it breaks down."""
+    from .arnoldi import ArnoldiBasis
+    from .errors import InputError
+
+    t_all = space.to_window(seg.x)
+    lo, hi = seg.lo[:, channel], seg.hi[:, channel]
+    if seg.n_points > max_points:
+        order = np.lexsort(t_all.T[::-1])
+        pick = order[np.linspace(0, seg.n_points - 1, max_points).round().astype(np.int64)]
+        pick = np.unique(pick)
+    else:
+        pick = np.arange(seg.n_points)
+    t = t_all[pick]
+    mid = 0.5 * (lo[pick] + hi[pick])
+    scale = np.maximum(np.abs(mid), 0.5 * (hi[pick] - lo[pick]))
+    d = mid / scale
+    v = np.ones(pick.size)
+    guess = None
+    for _ in range(steps):
+        try:
+            _, U = ArnoldiBasis.build(space, t, v / scale, n)
+            q_basis, V = ArnoldiBasis.build(space, t, v, m)
+        except InputError:
+            break
+        # min ||U a - D V b|| over ||b|| = 1: eliminate a (U is orthonormal).
+        # Its normal matrix (m x m) is enough for a guess and costs two products.
+        DV = d[:, None] * V
+        W = U.T @ DV
+        _, vecs = np.linalg.eigh(DV.T @ DV - W.T @ W)
+        b = vecs[:, 0]
+        qv = (V @ b) / v
+        if not np.all(np.isfinite(qv)) or not np.any(qv):
+            break
+        if np.sum(qv > 0) < np.sum(qv < 0):
+            qv, b = -qv, -b
+        guess = (q_basis, b)
+        aq = np.abs(qv)
+        v = 1.0 / np.maximum(aq, 1e-14 * float(np.max(aq)))
+        v /= np.max(v)
+    if guess is None:
+        return None
+    with np.errstate(all="ignore"):
+        q_all = guess[0].evaluate(t_all, guess[1], window=True)
+    return q_all if np.all(np.isfinite(q_all)) and np.any(q_all) else None

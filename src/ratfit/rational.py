@@ -1,15 +1,25 @@
 """The rational function r = p / q in a :class:`~ratfit.bases.PolynomialSpace`.
 
 Immutable and independent of how it was computed (QP, search, file): it only
-evaluates, finds poles and converts.
+evaluates, finds poles and converts. p and q are coefficient vectors either
+in the space's family (Legendre, ...) or, when ``p_basis``/``q_basis`` are
+given, in polynomial bases orthonormal on the data
+(:class:`~ratfit.arnoldi.ArnoldiBasis`), which represent denominators of
+large dynamic range that the family's coefficients cannot carry in double
+precision. :meth:`RationalFunction.to_family` converts to the family.
 """
 
 from __future__ import annotations
+
+from typing import TYPE_CHECKING
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from .bases import PolynomialSpace
+
+if TYPE_CHECKING:
+    from .arnoldi import ArnoldiBasis
 
 __all__ = ["RationalFunction"]
 
@@ -22,14 +32,26 @@ class RationalFunction:
     ``n = len(p)`` and ``m = len(q)`` count coefficients (degree n - 1 in 1-D).
     """
 
-    def __init__(self, space: PolynomialSpace, p: ArrayLike, q: ArrayLike) -> None:
+    def __init__(self, space: PolynomialSpace, p: ArrayLike, q: ArrayLike, *,
+                 p_basis: ArnoldiBasis | None = None,
+                 q_basis: ArnoldiBasis | None = None) -> None:
         self.space = space
+        self.p_basis = p_basis
+        self.q_basis = q_basis
         self.p = np.array(p, dtype=float).ravel()
         self.q = np.array(q, dtype=float).ravel()
         if self.p.size < 1 or self.q.size < 1:
             raise ValueError("p and q need at least one coefficient each")
         self.p.setflags(write=False)
         self.q.setflags(write=False)
+        for name, b, c in (("p", p_basis, self.p), ("q", q_basis, self.q)):
+            if b is not None and (b.space != space or b.size < c.size):
+                raise ValueError(f"{name}_basis does not match the space or the coefficients")
+
+    @property
+    def orthonormal(self) -> bool:
+        """True when p or q is held in a data-orthonormal (Arnoldi) basis."""
+        return self.p_basis is not None or self.q_basis is not None
 
     @property
     def n(self) -> int:
@@ -44,10 +66,19 @@ class RationalFunction:
         return self.n + self.m
 
     def numerator(self, x: ArrayLike, *, window: bool = False) -> Array:
-        return self.space.evaluate(x, self.p, window=window)
+        return (self.p_basis or self.space).evaluate(x, self.p, window=window)
 
     def denominator(self, x: ArrayLike, *, window: bool = False) -> Array:
-        return self.space.evaluate(x, self.q, window=window)
+        return (self.q_basis or self.space).evaluate(x, self.q, window=window)
+
+    def to_family(self) -> RationalFunction:
+        """The same function with p and q in the space's family (exact up to
+        rounding; check the values when q has a large dynamic range)."""
+        if not self.orthonormal:
+            return self
+        p = self.p if self.p_basis is None else self.p_basis.to_family(self.p)
+        q = self.q if self.q_basis is None else self.q_basis.to_family(self.q)
+        return RationalFunction(self.space, p, q)
 
     def __call__(self, x: ArrayLike, *, window: bool = False) -> Array:
         """Values at points x (N, d) or (N,) in 1-D; inf/NaN where q vanishes."""
@@ -61,7 +92,10 @@ class RationalFunction:
         q = np.trim_zeros(self.q, "b")
         if q.size <= 1:
             return np.array([], dtype=complex)
-        t = np.asarray(self.space.family.roots(q), dtype=complex)
+        if self.q_basis is not None:
+            t = np.asarray(self.q_basis.roots(q), dtype=complex)
+        else:
+            t = np.asarray(self.space.family.roots(q), dtype=complex)
         a, b = self.space._scale
         return (t - b[0]) / a[0]
 
@@ -77,16 +111,33 @@ class RationalFunction:
         pad = rtol * width
         return np.sort(r[(r >= lo - pad) & (r <= hi + pad)])
 
+    def bases_dict(self) -> dict:
+        """The orthonormal bases (if any), keyed p_basis / q_basis."""
+        out = {}
+        if self.p_basis is not None:
+            out["p_basis"] = self.p_basis.to_dict()
+        if self.q_basis is not None:
+            out["q_basis"] = self.q_basis.to_dict()
+        return out
+
     def to_dict(self) -> dict:
         return {
             "space": self.space.to_dict(),
             "p": self.p.tolist(),
             "q": self.q.tolist(),
+            **self.bases_dict(),
         }
 
     @classmethod
-    def from_dict(cls, d: dict) -> RationalFunction:
-        return cls(PolynomialSpace.from_dict(d["space"]), d["p"], d["q"])
+    def from_dict(cls, d: dict, space: PolynomialSpace | None = None) -> RationalFunction:
+        from .arnoldi import ArnoldiBasis
+
+        space = PolynomialSpace.from_dict(d["space"]) if space is None else space
+        bases = {
+            key: ArnoldiBasis.from_dict(d[key], space)
+            for key in ("p_basis", "q_basis") if d.get(key) is not None
+        }
+        return cls(space, d["p"], d["q"], **bases)
 
     def __eq__(self, other: object) -> bool:
         return (
@@ -94,6 +145,8 @@ class RationalFunction:
             and self.space == other.space
             and np.array_equal(self.p, other.p)
             and np.array_equal(self.q, other.q)
+            and self.p_basis == other.p_basis
+            and self.q_basis == other.q_basis
         )
 
     __hash__ = None  # type: ignore[assignment]
@@ -101,5 +154,5 @@ class RationalFunction:
     def __repr__(self) -> str:
         return (
             f"RationalFunction({self.space.family.name}, dim={self.space.dim}, "
-            f"n={self.n}, m={self.m})"
+            f"n={self.n}, m={self.m}{', orthonormal' if self.orthonormal else ''})"
         )

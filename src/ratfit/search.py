@@ -36,7 +36,7 @@ from numpy.typing import ArrayLike
 
 from .bases import INDEX_SETS, PolynomialSpace, get_family
 from .errors import InputError
-from .qp import CROSS_CHECKS, Attempt, ConstraintSystem, solve_fixed
+from .qp import CROSS_CHECKS, ArnoldiSystem, Attempt, ConstraintSystem, sk_denominator, solve_fixed
 from .rational import RationalFunction
 from .results import STATUS_MESSAGES, FitResult
 from .segments import Segments
@@ -46,6 +46,7 @@ from .verify import Verification, verify
 __all__ = ["RationalFitter", "fit"]
 
 STRATEGIES = ("staircase", "exhaustive")
+FORMULATIONS = ("auto", "arnoldi", "basis")
 SPLIT_RULES = ("min-m", "error")
 DEFAULT_MAX_TOTAL = 100
 
@@ -72,6 +73,13 @@ class RationalFitter:
     jobs : threads for independent QPs. Default: all cores, used once QPs
         take long enough for threads to pay off (> 20 ms each on average).
     callback : called with each :class:`~ratfit.qp.Attempt` (progress).
+    formulation : how P(n, m) is written for the solver. "arnoldi": p and q in
+        bases orthonormal on the data, weighted by a denominator guess
+        (:class:`~ratfit.qp.ArnoldiSystem`), the well-conditioned form that
+        finds the smallest fits; "basis": the seed's matrix in the basis
+        family; "auto" (default): arnoldi where it applies (1-D, or the total
+        index set in n-D), else basis. Arnoldi fits are stored with their
+        recurrences; ``rational_.to_family()`` converts.
 
     Learned attributes: ``results_`` (one :class:`FitResult` per channel),
     ``result_`` and ``rational_`` (first channel), ``segments_``.
@@ -95,6 +103,7 @@ class RationalFitter:
         active_set: bool | None = None,
         jobs: int | None = None,
         callback: Callable[[Attempt], None] | None = None,
+        formulation: str = "auto",
     ) -> None:
         self.basis = basis
         self.index_set = index_set
@@ -111,11 +120,13 @@ class RationalFitter:
         self.active_set = active_set
         self.jobs = jobs
         self.callback = callback
+        self.formulation = formulation
 
     # -- sklearn-style parameter access -------------------------------------------
     _PARAMS = (
         "basis", "index_set", "domain", "n", "m", "total", "min_total", "max_total",
         "strategy", "split_rule", "solver", "cross_check", "active_set", "jobs", "callback",
+        "formulation",
     )
 
     def get_params(self) -> dict:
@@ -140,6 +151,12 @@ class RationalFitter:
             raise InputError(f"unknown strategy {self.strategy!r}; choose {STRATEGIES}")
         if self.split_rule not in SPLIT_RULES:
             raise InputError(f"unknown split rule {self.split_rule!r}; choose {SPLIT_RULES}")
+        if self.formulation not in FORMULATIONS:
+            raise InputError(
+                f"unknown formulation {self.formulation!r}; choose {', '.join(FORMULATIONS)}"
+            )
+        if self.formulation == "arnoldi" and seg.dim > 1 and self.index_set != "total":
+            raise InputError("formulation 'arnoldi' needs index_set='total' in n-D")
         if self.cross_check not in CROSS_CHECKS:
             raise InputError(f"unknown cross check {self.cross_check!r}; choose {CROSS_CHECKS}")
         check_solver(self.solver)
@@ -187,6 +204,19 @@ class RationalFitter:
     # -- extension points (subclasses: monotone CDFs, other formulations) ------------
     def _make_system(self, space: PolynomialSpace, seg: Segments, j: int) -> ConstraintSystem:
         return ConstraintSystem(space, seg, j)
+
+    def _split_system(self, space: PolynomialSpace, seg: Segments, j: int, n: int,
+                      m: int) -> ConstraintSystem | None:
+        """A system for one split only (None: use the shared one)."""
+        form = self.formulation
+        if form == "auto":
+            form = "arnoldi" if seg.dim == 1 or space.index_set == "total" else "basis"
+        if form != "arnoldi":
+            return None
+        try:
+            return ArnoldiSystem(space, seg, j, n, m, sk_denominator(space, seg, j, n, m))
+        except InputError:
+            return None  # too few points for this many coefficients: the seed's form says so
 
     def _verify(self, rf: RationalFunction, seg: Segments, j: int) -> Verification:
         return verify(rf, seg, channel=j)
@@ -266,16 +296,36 @@ class _Search:
 
     # -- testing one split -----------------------------------------------------------
     def _run(self, n: int, m: int) -> Candidate:
+        system = self.f._split_system(self.space, self.seg, self.channel, n, m)
+        form = "arnoldi" if system is not None else "basis"
+        if system is None:
+            system = self.system
+            system.prepare(n, m)
         att = solve_fixed(
-            self.system, n, m, solver=self.f.solver, cross_check=self.f.cross_check,
+            system, n, m, solver=self.f.solver, cross_check=self.f.cross_check,
             active_set=self.f.active_set,
         )
+        if form == "arnoldi" and att.status == "failed":
+            # A numerical failure in the weighted form: the seed's form decides.
+            retry = solve_fixed(
+                self.system, n, m, solver=self.f.solver, cross_check=self.f.cross_check,
+                active_set=self.f.active_set,
+            ) if self._prepared(n, m) else None
+            if retry is not None and retry.status != "failed":
+                retry.messages = att.messages + retry.messages
+                retry.qp_solves += att.qp_solves
+                att, system, form = retry, self.system, "basis"
+        att.formulation = form
         rf = ver = None
         c = att.c if att.c is not None else att.raw_c
         if c is not None:
-            rf = self.system.to_rational(n, m, c)
+            rf = system.to_rational(n, m, c)
             ver = self.f._verify(rf, self.seg, self.channel)
         return att, rf, ver
+
+    def _prepared(self, n: int, m: int) -> bool:
+        self.system.prepare(n, m)
+        return True
 
     def test_many(self, splits: Iterable[tuple[int, int]]) -> None:
         todo = [s for s in dict.fromkeys(splits) if s not in self.cache]

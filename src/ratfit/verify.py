@@ -107,7 +107,7 @@ def pole_check(
         per_dim = max(3, int(_GRID_POINTS ** (1.0 / space.dim)))
         axes = [np.linspace(-1.0, 1.0, per_dim)] * space.dim
         grid = np.stack([g.ravel() for g in np.meshgrid(*axes, indexing="ij")], axis=1)
-    qg = space.evaluate(grid, rf.q, window=True)
+    qg = rf.denominator(grid, window=True)
     vals = np.concatenate([np.ravel(q_at_x), np.ravel(qg)])
     if not np.all(np.isfinite(vals)):
         return poles, True
