@@ -447,10 +447,13 @@ class MonotoneFitter(RationalFitter):
         return MonotoneSystem(space, seg, j, form=self.form, grid=int(self.grid))
 
     def _split_system(self, space: PolynomialSpace, seg: Segments, j: int, n: int,
-                      m: int) -> ConstraintSystem | None:
+                      m: int, like: ConstraintSystem | None = None) -> ConstraintSystem | None:
         """Always the shared MonotoneSystem (the per-split Arnoldi form has no
         derivative rows)."""
         return None
+
+    def _needs_shared_system(self, space: PolynomialSpace, seg: Segments) -> bool:
+        return True
 
     def _verify(self, rf: RationalFunction, seg: Segments, j: int) -> CDFVerification:
         return verify_cdf(rf, seg, channel=j, check_points=self.check_points)

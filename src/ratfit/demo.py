@@ -71,12 +71,23 @@ def addendum_json(run: dict[str, Any]) -> dict[str, Any]:
             "paper": dict(zip(("delta", "sigma_min", "sigma_max"), PAPER_TABLE[basis],
                               strict=True)),
         }
+    from .dense import dense_check, dense_grid
+
+    seg: Segments = run["segments"]
+    xd = dense_grid(seg.x[:, 0], 10)
+
     def brief(mn: FitResult) -> dict[str, Any]:
-        return {
+        out = {
             "n": mn.n, "m": mn.m, "total": mn.total, "verified": mn.success,
             "basis": mn.basis, "max_violation": mn.max_violation,
             "qp_solves": mn.qp_solves, "seconds": mn.seconds,
+            "formulation": mn.formulation,
         }
+        if mn.rational is not None:  # between the samples: a 10x denser grid
+            chk = dense_check(mn.rational, addendum_function, xd, dt=0.1)
+            out["dense_max_rel_error"] = chk.max_rel_error
+            out["dense_inside"] = chk.inside
+        return out
 
     return {
         "bases": bases,

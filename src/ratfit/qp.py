@@ -131,8 +131,11 @@ class ConstraintSystem:
 
     def conditioning(self, n: int, m: int) -> tuple[float, float, float]:
         """(delta, sigma_min, sigma_max) of the full A(n, m)."""
-        assert self._R is not None, "call prepare() first"
-        s = np.linalg.svd(self._R[:, self.columns(n, m)], compute_uv=False)
+        with self._lock:  # a concurrent prepare() may be growing R
+            R, k = self._R, self._k
+        assert R is not None and max(n, m) <= k, "call prepare() first"
+        cols = np.r_[np.arange(n), k + np.arange(m)]
+        s = np.linalg.svd(R[:, cols], compute_uv=False)
         smax, smin = float(s[0]), float(s[-1])
         delta = smin / smax if smax > 0 else 0.0
         return delta, smin, smax
@@ -216,7 +219,11 @@ def solve_fixed(
         c = sol.x if sol.status == "optimal" and _positive(A @ sol.x) else None
         att.decided_by = solver
         if sol.status == "optimal" and c is None:
-            att.messages.append(f"{solver} returned a point violating its own constraints")
+            c = _refine(A, b, sol.x)
+            if c is not None:
+                att.decided_by = f"{solver}+refine"
+            else:
+                att.messages.append(f"{solver} returned a point violating its own constraints")
         if c is None and cross_check != "none":
             c = _cross_check(A, cross_check)
             att.qp_solves += 1
@@ -255,6 +262,26 @@ def solve_fixed(
     return att
 
 
+def _refine(A: Array, b: Array, x: Array, steps: int = 3) -> Array | None:
+    """Iterative refinement of a solver's point that misses its constraints by
+    rounding: residuals in extended precision (numpy longdouble), corrections
+    from least squares on the nearly active rows. None if it stays infeasible."""
+    if x is None or not np.all(np.isfinite(x)):
+        return None
+    A_ld = A.astype(np.longdouble)
+    b_ld = b.astype(np.longdouble)
+    x = x.astype(float).copy()
+    for _ in range(steps):
+        r = b_ld - A_ld @ x.astype(np.longdouble)  # > 0 where a row is short
+        act = r > -1e-8 * np.abs(b_ld)
+        if not act.any():
+            break
+        dx, *_ = np.linalg.lstsq(A[act], np.asarray(r[act], dtype=float), rcond=None)
+        x = x + dx
+    res = A_ld @ x.astype(np.longdouble)
+    return x if bool(np.all(np.isfinite(x)) and np.all(res > 0)) else None
+
+
 def _positive(v: Array) -> bool:
     return bool(np.all(np.isfinite(v)) and np.all(v > 0))
 
@@ -263,7 +290,11 @@ def _cross_check(A: Array, kind: str) -> Array | None:
     """Look for c with A c > 0 in a second formulation; None if it finds none."""
     norms = np.linalg.norm(A, axis=1)
     An = A / norms[:, None]
-    if kind == "orth":
+    if An.shape[0] <= An.shape[1]:
+        # No more rows than unknowns: with full row rank, A c = 1 has a solution.
+        c, *_ = np.linalg.lstsq(An, np.ones(An.shape[0]), rcond=None)
+        c = c / norms.max()
+    elif kind == "orth":
         # Orthonormal columns: the QP sees a perfectly conditioned matrix.
         Q, R = np.linalg.qr(An)
         if np.min(np.abs(np.diag(R))) <= 1e-14 * np.max(np.abs(np.diag(R))):
@@ -316,8 +347,14 @@ class ArnoldiSystem(ConstraintSystem):
     """
 
     def __init__(self, space: PolynomialSpace, seg: Segments, channel: int, n: int, m: int,
-                 q0: Array | None = None) -> None:
-        super().__init__(space, seg, channel)
+                 q0: Array | None = None, *, like: ConstraintSystem | None = None) -> None:
+        if like is not None:  # share the mapped points and their order (large data)
+            self.__dict__.update({k: like.__dict__[k] for k in (
+                "space", "x", "t", "lo", "hi", "n_points", "_order")})
+            self._k, self._R, self._lock = 0, None, threading.Lock()
+            self.B = self._cum_sq = np.zeros((self.n_points, 0))
+        else:
+            super().__init__(space, seg, channel)
         self.n, self.m = n, m
         mid = 0.5 * (self.lo + self.hi)
         half = 0.5 * (self.hi - self.lo)
@@ -402,17 +439,18 @@ class ArnoldiSystem(ConstraintSystem):
 
 
 def sk_denominator(space: PolynomialSpace, seg: Segments, channel: int, n: int, m: int,
-                   steps: int = 4, max_points: int = 4000) -> Array | None:
+                   steps: int = 4, max_points: int = 4000,
+                   like: ConstraintSystem | None = None) -> Array | None:
     """Values at every data point of a denominator guess for (n, m), from
     re-weighted linearised least squares (Sanathanan-Koerner) on at most
     ``max_points`` points spread over the data. None if it breaks down."""
     from .arnoldi import ArnoldiBasis
     from .errors import InputError
 
-    t_all = space.to_window(seg.x)
+    t_all = space.to_window(seg.x) if like is None else like.t
     lo, hi = seg.lo[:, channel], seg.hi[:, channel]
     if seg.n_points > max_points:
-        order = np.lexsort(t_all.T[::-1])
+        order = np.lexsort(t_all.T[::-1]) if like is None else like._order
         pick = order[np.linspace(0, seg.n_points - 1, max_points).round().astype(np.int64)]
         pick = np.unique(pick)
     else:

@@ -41,9 +41,13 @@ class FitResult:
     solver: str
     decided_by: str
     solver_status: str = ""
+    formulation: str = "basis"  # how the deciding QP was written: "basis" or "arnoldi"
     channel: str = "y0"
     history: tuple[dict, ...] = field(default=())
     disagreements: tuple[str, ...] = field(default=())
+    # A checked Farkas certificate (ratfit.certificate.Certificate.summary()) when
+    # status 1 comes from a proven infeasibility rather than a numerical failure.
+    infeasible_proof: dict | None = None
 
     @property
     def total(self) -> int:
@@ -96,8 +100,10 @@ class FitResult:
             "solver": self.solver,
             "solver_status": self.solver_status,
             "decided_by": self.decided_by,
+            "formulation": self.formulation,
             "disagreements": list(self.disagreements),
             "seconds": round(self.seconds, 6),
+            "infeasible_proof": self.infeasible_proof,
         }
 
 

@@ -205,16 +205,24 @@ class RationalFitter:
     def _make_system(self, space: PolynomialSpace, seg: Segments, j: int) -> ConstraintSystem:
         return ConstraintSystem(space, seg, j)
 
-    def _split_system(self, space: PolynomialSpace, seg: Segments, j: int, n: int,
-                      m: int) -> ConstraintSystem | None:
-        """A system for one split only (None: use the shared one)."""
+    def _resolved_formulation(self, space: PolynomialSpace, seg: Segments) -> str:
         form = self.formulation
         if form == "auto":
             form = "arnoldi" if seg.dim == 1 or space.index_set == "total" else "basis"
-        if form != "arnoldi":
+        return form
+
+    def _needs_shared_system(self, space: PolynomialSpace, seg: Segments) -> bool:
+        """Whether splits are solved on the shared system (prepared before threads)."""
+        return self._resolved_formulation(space, seg) != "arnoldi"
+
+    def _split_system(self, space: PolynomialSpace, seg: Segments, j: int, n: int,
+                      m: int, like: ConstraintSystem | None = None) -> ConstraintSystem | None:
+        """A system for one split only (None: use the shared one)."""
+        if self._resolved_formulation(space, seg) != "arnoldi":
             return None
         try:
-            return ArnoldiSystem(space, seg, j, n, m, sk_denominator(space, seg, j, n, m))
+            q0 = sk_denominator(space, seg, j, n, m, like=like)
+            return ArnoldiSystem(space, seg, j, n, m, q0, like=like)
         except InputError:
             return None  # too few points for this many coefficients: the seed's form says so
 
@@ -293,10 +301,12 @@ class _Search:
         self.cache: dict[tuple[int, int], Candidate] = {}
         self.infeasible: list[tuple[int, int]] = []
         self.jobs = int(fitter.jobs or os.cpu_count() or 1)
+        self.cap = int(np.unique(seg.x, axis=0).shape[0])
 
     # -- testing one split -----------------------------------------------------------
     def _run(self, n: int, m: int) -> Candidate:
-        system = self.f._split_system(self.space, self.seg, self.channel, n, m)
+        system = self.f._split_system(self.space, self.seg, self.channel, n, m,
+                                      like=self.system)
         form = "arnoldi" if system is not None else "basis"
         if system is None:
             system = self.system
@@ -327,13 +337,28 @@ class _Search:
         self.system.prepare(n, m)
         return True
 
+    def _effective(self, s: tuple[int, int]) -> tuple[int, int]:
+        """Feasibility only sees values at the data: beyond as many coefficients
+        as distinct points, p (or q) takes any values already. (n, m) is then
+        answered by (min(n, N), min(m, N)), which the seed's matrix (rank-deficient
+        there) would only make harder for the solver."""
+        return min(s[0], self.cap), min(s[1], self.cap)
+
     def test_many(self, splits: Iterable[tuple[int, int]]) -> None:
-        todo = [s for s in dict.fromkeys(splits) if s not in self.cache]
+        splits = list(dict.fromkeys(splits))
+        aliases = {s: self._effective(s) for s in splits if self._effective(s) != s}
+        if aliases:
+            self.test_many([self._effective(s) for s in splits])
+            for s, e in aliases.items():
+                self.cache.setdefault(s, self.cache[e])
+            return
+        todo = [s for s in splits if s not in self.cache]
         if not todo:
             return
         n_max = max(s[0] for s in todo)
         m_max = max(s[1] for s in todo)
-        self.system.prepare(n_max, m_max)
+        if self.f._needs_shared_system(self.space, self.seg):
+            self.system.prepare(n_max, m_max)
         if self._parallel() and len(todo) > 1:
             with ThreadPoolExecutor(min(self.jobs, len(todo))) as ex:
                 outs = list(ex.map(lambda s: self._run(*s), todo))
@@ -396,6 +421,10 @@ class _Search:
         while best is None and total <= hi:
             width = self._batch_width()
             probes = [_balanced(t) for t in range(total, min(hi, total + width - 1) + 1)]
+            if total + len(probes) - 1 >= self.cap + 1 and self.cap + 1 >= lo:
+                # A polynomial through every point (q constant: no pole) always fits;
+                # it bounds the answer when balanced splits keep finding poles.
+                probes.append((self.cap, 1))
             self.test_many(probes)
             for s in probes:
                 if self.ok(s):
@@ -459,6 +488,7 @@ class _Search:
         )
         qp_solves = sum(c[0].qp_solves for c in self.cache.values())
         name = self.seg.names[self.channel]
+        proof = None
         if chosen and self.ok(chosen[0]):
             att, rf, ver = self.cache[chosen[0]]
             status, msg = 0, STATUS_MESSAGES[0]
@@ -474,10 +504,21 @@ class _Search:
             else:
                 status = 1
                 span = f"total {lo}" if lo == hi else f"totals {lo}..{hi}"
-                msg = (
-                    f"{STATUS_MESSAGES[1]}: every split of {span} was infeasible or failed "
-                    f"(largest tried: n={att.n}, m={att.m})"
-                )
+                from .certificate import search_proof
+
+                proof = search_proof(self)
+                if proof is not None and proof["checked"]:
+                    msg = (
+                        f"{STATUS_MESSAGES[1]}: no rational of this size fits these "
+                        f"segments (certificate: "
+                        f"{proof['statement']}); every split of {span} was infeasible or failed"
+                    )
+                else:
+                    msg = (
+                        f"{STATUS_MESSAGES[1]}: every split of {span} was infeasible or failed "
+                        f"(largest tried: n={att.n}, m={att.m}); solver failed or reported "
+                        "infeasible without a checked certificate"
+                    )
         return FitResult(
             success=status == 0,
             status=status,
@@ -497,9 +538,11 @@ class _Search:
             solver=self.f.solver,
             decided_by=att.decided_by,
             solver_status=att.solver_status,
+            formulation=att.formulation,
             channel=name,
             history=history,
             disagreements=disagreements,
+            infeasible_proof=proof if status == 1 else None,
         )
 
     def _closest(self) -> Candidate:
