@@ -301,7 +301,9 @@ class _Search:
         self.cache: dict[tuple[int, int], Candidate] = {}
         self.infeasible: list[tuple[int, int]] = []
         self.jobs = int(fitter.jobs or os.cpu_count() or 1)
-        self.cap = int(np.unique(seg.x, axis=0).shape[0])
+        # distinct points, from the system's sort order (np.unique on rows is slow)
+        srt = self.system.t[self.system._order]
+        self.cap = 1 + int(np.count_nonzero(np.any(srt[1:] != srt[:-1], axis=1)))
 
     # -- testing one split -----------------------------------------------------------
     def _run(self, n: int, m: int) -> Candidate:
