@@ -328,7 +328,8 @@ def _read_alta(src: str, data: bytes, dim: int | None) -> Dataset:
                 if value == "binary":
                     raise FileFormatError(
                         f"{src} line {n}: ALTA binary files (#FORMAT binary) are not "
-                        "supported yet; convert the file to ALTA text"
+                        "supported by this reader; ratfit.brdfio.read_alta_binary and "
+                        "`ratfit brdf fit` read them"
                     )
                 if value not in ("text", "ascii", "txt"):
                     raise FileFormatError(f"{src} line {n}: unknown ALTA #FORMAT {_short(value)}")
