@@ -130,12 +130,13 @@ def plan_forms(
             out.append(ChannelForm(ch.name, "horner", "power", np.array(mf.P), np.array(mf.Q),
                                    None, None, reason, err))
         elif rf.p_basis is not None and rf.q_basis is not None and (
-            form == "recurrence" or (form == "auto" and _family_error(rf, pts) > rtol)
+            form == "recurrence" or (form == "auto" and (fam_err := _family_error(rf, pts))
+                                     > rtol)
         ):
             # The fit's own representation: the Arnoldi recurrence, evaluated as stored.
             why = ("chosen by the user" if form == "recurrence" else
                    f"monomial ({err:.1e}) and {space.family.name} "
-                   f"({_family_error(rf, pts):.1e}) conversions lose accuracy")
+                   f"({fam_err:.1e}) conversions lose accuracy")
             out.append(ChannelForm(
                 ch.name, "recurrence", space.family.name, np.zeros(1), np.zeros(1),
                 np.array(a), np.array(b), f"data-orthonormal recurrence, {why}", err,

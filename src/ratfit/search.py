@@ -319,11 +319,12 @@ class _Search:
         )
         if form == "arnoldi" and att.status == "failed":
             # A numerical failure in the weighted form: the seed's form decides.
+            self.system.prepare(n, m)
             retry = solve_fixed(
                 self.system, n, m, solver=self.f.solver, cross_check=self.f.cross_check,
                 active_set=self.f.active_set,
-            ) if self._prepared(n, m) else None
-            if retry is not None and retry.status != "failed":
+            )
+            if retry.status != "failed":
                 retry.messages = att.messages + retry.messages
                 retry.qp_solves += att.qp_solves
                 att, system, form = retry, self.system, "basis"
@@ -334,10 +335,6 @@ class _Search:
             rf = system.to_rational(n, m, c)
             ver = self.f._verify(rf, self.seg, self.channel)
         return att, rf, ver
-
-    def _prepared(self, n: int, m: int) -> bool:
-        self.system.prepare(n, m)
-        return True
 
     def _effective(self, s: tuple[int, int]) -> tuple[int, int]:
         """Feasibility only sees values at the data: beyond as many coefficients
