@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import threading
 import time
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -356,15 +357,8 @@ class ArnoldiSystem(ConstraintSystem):
         else:
             super().__init__(space, seg, channel)
         self.n, self.m = n, m
-        mid = 0.5 * (self.lo + self.hi)
-        half = 0.5 * (self.hi - self.lo)
-        self.scale = np.maximum(np.abs(mid), half)
-        if q0 is None:
-            v = np.ones(self.n_points)
-        else:
-            aq = np.abs(q0)
-            v = 1.0 / np.maximum(aq, 1e-14 * float(np.max(aq)))
-        self.v = v / np.max(v)
+        self.scale = segment_scales(self.lo, self.hi)
+        self.v = denominator_weights(q0, self.n_points)
         from .arnoldi import ArnoldiBasis
 
         self.p_basis, self.U = ArnoldiBasis.build(space, self.t, self.v / self.scale, n)
@@ -438,17 +432,35 @@ class ArnoldiSystem(ConstraintSystem):
                                 q_basis=self.q_basis)
 
 
-def sk_denominator(space: PolynomialSpace, seg: Segments, channel: int, n: int, m: int,
-                   steps: int = 4, max_points: int = 4000,
+def denominator_weights(q0: Array | None, n_points: int) -> Array:
+    """v = 1 / |q0| scaled to max 1 (zeros of q0 floored at 1e-14 max |q0|)."""
+    if q0 is None:
+        return np.ones(n_points)
+    aq = np.abs(q0)
+    v = 1.0 / np.maximum(aq, 1e-14 * float(np.max(aq)))
+    return v / np.max(v)
+
+
+def segment_scales(lo: Array, hi: Array) -> Array:
+    """s = max(|mid|, half-width): the per-point row scale of the weighted forms."""
+    return np.maximum(np.abs(0.5 * (lo + hi)), 0.5 * (hi - lo))
+
+
+def sk_denominator(space: PolynomialSpace, seg: Segments, channel: int | Sequence[int],
+                   n: int | Sequence[int], m: int, steps: int = 4, max_points: int = 4000,
                    like: ConstraintSystem | None = None) -> Array | None:
     """Values at every data point of a denominator guess for (n, m), from
     re-weighted linearised least squares (Sanathanan-Koerner) on at most
-    ``max_points`` points spread over the data. None if it breaks down."""
+    ``max_points`` points spread over the data. None if it breaks down.
+
+    ``channel`` and ``n`` may be sequences: one q shared by several channels,
+    each with its own numerator size, minimising the sum of their residuals."""
     from .arnoldi import ArnoldiBasis
     from .errors import InputError
 
+    chans = [channel] if isinstance(channel, (int, np.integer)) else list(channel)
+    sizes = [n] if isinstance(n, (int, np.integer)) else list(n)
     t_all = space.to_window(seg.x) if like is None else like.t
-    lo, hi = seg.lo[:, channel], seg.hi[:, channel]
     if seg.n_points > max_points:
         order = np.lexsort(t_all.T[::-1]) if like is None else like._order
         pick = order[np.linspace(0, seg.n_points - 1, max_points).round().astype(np.int64)]
@@ -456,22 +468,25 @@ def sk_denominator(space: PolynomialSpace, seg: Segments, channel: int, n: int, 
     else:
         pick = np.arange(seg.n_points)
     t = t_all[pick]
-    mid = 0.5 * (lo[pick] + hi[pick])
-    scale = np.maximum(np.abs(mid), 0.5 * (hi[pick] - lo[pick]))
-    d = mid / scale
+    lo, hi = seg.lo[np.ix_(pick, chans)], seg.hi[np.ix_(pick, chans)]
+    scale = segment_scales(lo, hi)
+    d = 0.5 * (lo + hi) / scale
     v = np.ones(pick.size)
     guess = None
     for _ in range(steps):
         try:
-            _, U = ArnoldiBasis.build(space, t, v / scale, n)
             q_basis, V = ArnoldiBasis.build(space, t, v, m)
+            # min sum_c ||U_c a_c - D_c V b|| over ||b|| = 1: eliminate each a_c
+            # (U_c is orthonormal); the normal matrix (m x m) is enough for a guess.
+            G = np.zeros((m, m))
+            for c, nc in enumerate(sizes):
+                _, U = ArnoldiBasis.build(space, t, v / scale[:, c], nc)
+                DV = d[:, c, None] * V
+                W = U.T @ DV
+                G += DV.T @ DV - W.T @ W
         except InputError:
             break
-        # min ||U a - D V b|| over ||b|| = 1: eliminate a (U is orthonormal).
-        # Its normal matrix (m x m) is enough for a guess and costs two products.
-        DV = d[:, None] * V
-        W = U.T @ DV
-        _, vecs = np.linalg.eigh(DV.T @ DV - W.T @ W)
+        _, vecs = np.linalg.eigh(G)
         b = vecs[:, 0]
         qv = (V @ b) / v
         if not np.all(np.isfinite(qv)) or not np.any(qv):
@@ -479,9 +494,7 @@ def sk_denominator(space: PolynomialSpace, seg: Segments, channel: int, n: int, 
         if np.sum(qv > 0) < np.sum(qv < 0):
             qv, b = -qv, -b
         guess = (q_basis, b)
-        aq = np.abs(qv)
-        v = 1.0 / np.maximum(aq, 1e-14 * float(np.max(aq)))
-        v /= np.max(v)
+        v = denominator_weights(qv, pick.size)
     if guess is None:
         return None
     with np.errstate(all="ignore"):

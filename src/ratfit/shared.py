@@ -43,7 +43,13 @@ from numpy.typing import ArrayLike, NDArray
 from .arnoldi import ArnoldiBasis
 from .bases import PolynomialSpace
 from .errors import InputError
-from .qp import Attempt, solve_fixed
+from .qp import (
+    Attempt,
+    denominator_weights,
+    segment_scales,
+    sk_denominator,
+    solve_fixed,
+)
 from .rational import RationalFunction
 from .results import STATUS_MESSAGES, FitResult
 from .search import RationalFitter
@@ -56,58 +62,12 @@ Array = NDArray[np.float64]
 Sizes = tuple[int, ...]
 
 
-def _scales(seg: Segments) -> Array:
-    mid = 0.5 * (seg.lo + seg.hi)
-    half = 0.5 * (seg.hi - seg.lo)
-    return np.maximum(np.abs(mid), half)
-
-
 def shared_sk_denominator(space: PolynomialSpace, seg: Segments, n: Sizes, m: int,
                           steps: int = 4, max_points: int = 4000) -> Array | None:
     """Values at the data of a denominator guess shared by every channel:
     min over q (||q|| = 1, weighted) of sum_c min_{p_c} sum_i v_i^2
     |p_c(x_i) - mid_ic q(x_i)|^2 / s_ic^2, re-weighted a few times."""
-    t_all = space.to_window(seg.x)
-    if seg.n_points > max_points:
-        order = np.lexsort(t_all.T[::-1])
-        pick = np.unique(order[np.linspace(0, seg.n_points - 1, max_points).round()
-                               .astype(np.int64)])
-    else:
-        pick = np.arange(seg.n_points)
-    t = t_all[pick]
-    mid = 0.5 * (seg.lo[pick] + seg.hi[pick])
-    scale = _scales(seg)[pick]
-    d = mid / scale
-    v = np.ones(pick.size)
-    guess = None
-    for _ in range(steps):
-        try:
-            q_basis, V = ArnoldiBasis.build(space, t, v, m)
-            G = np.zeros((m, m))
-            for c, nc in enumerate(n):
-                _, U = ArnoldiBasis.build(space, t, v / scale[:, c], nc)
-                DV = d[:, c, None] * V
-                W = U.T @ DV
-                G += DV.T @ DV - W.T @ W
-        except InputError:
-            break
-        _, vecs = np.linalg.eigh(G)
-        b = vecs[:, 0]
-        qv = (V @ b) / v
-        if not np.all(np.isfinite(qv)) or not np.any(qv):
-            break
-        if np.sum(qv > 0) < np.sum(qv < 0):
-            b = -b
-            qv = -qv
-        guess = (q_basis, b)
-        aq = np.abs(qv)
-        v = 1.0 / np.maximum(aq, 1e-14 * float(np.max(aq)))
-        v /= np.max(v)
-    if guess is None:
-        return None
-    with np.errstate(all="ignore"):
-        q_all = guess[0].evaluate(t_all, guess[1], window=True)
-    return q_all if np.all(np.isfinite(q_all)) and np.any(q_all) else None
+    return sk_denominator(space, seg, range(seg.n_channels), n, m, steps, max_points)
 
 
 class SharedSystem:
@@ -126,13 +86,8 @@ class SharedSystem:
         self.n_points = seg.n_points
         self.K = seg.n_channels
         self.t = space.to_window(seg.x)
-        self.scale = _scales(seg)
-        if q0 is None:
-            v = np.ones(self.n_points)
-        else:
-            aq = np.abs(q0)
-            v = 1.0 / np.maximum(aq, 1e-14 * float(np.max(aq)))
-        self.v = v / np.max(v)
+        self.scale = segment_scales(seg.lo, seg.hi)
+        self.v = denominator_weights(q0, self.n_points)
         self.lo_s = seg.lo / self.scale
         self.hi_s = seg.hi / self.scale
         self.p_bases: list[ArnoldiBasis] = []
