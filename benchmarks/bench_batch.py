@@ -30,6 +30,7 @@ import time  # noqa: E402
 from pathlib import Path  # noqa: E402
 
 import numpy as np  # noqa: E402
+from _bench import table  # noqa: E402  (benchmarks/_bench.py)
 
 from ratfit import batch  # noqa: E402
 from ratfit.dataio import read_data, write_csv  # noqa: E402
@@ -85,14 +86,6 @@ def on_cluster(manifest: dict, folder: Path, workers: int, out: Path) -> tuple[f
         cluster.close()
     assert summary.fitted == len(summary.rows) == 24, summary.counts
     return t2 - t1, t2 - t0, summary.counts["ok"]
-
-
-def table(title: str, header: list[str], rows: list[list[str]]) -> None:
-    widths = [max(len(h), *(len(r[i]) for r in rows)) for i, h in enumerate(header)]
-    print(f"\n{title}")
-    print("  ".join(h.rjust(w) for h, w in zip(header, widths, strict=True)))
-    for r in rows:
-        print("  ".join(c.rjust(w) for c, w in zip(r, widths, strict=True)))
 
 
 def main() -> None:

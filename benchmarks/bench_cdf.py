@@ -18,9 +18,9 @@ Run:  python benchmarks/bench_cdf.py [--repeat 3] [--samples 1000000]
 from __future__ import annotations
 
 import argparse
-import time
 
 import numpy as np
+from _bench import best_of, table  # benchmarks/_bench.py
 from scipy.integrate import cumulative_trapezoid
 
 from ratfit.cdf import MonotoneFitter, cdf_from_pdf
@@ -32,24 +32,6 @@ from ratfit.sampling import (
     ggx_theta_pdf,
     ks_statistic,
 )
-
-
-def best_of(fn, repeat: int):
-    times, out = [], None
-    for _ in range(repeat):
-        t0 = time.perf_counter()
-        out = fn()
-        times.append(time.perf_counter() - t0)
-    return min(times), out
-
-
-def table(title: str, header: list[str], rows: list[list[str]]) -> None:
-    widths = [max(len(h), *(len(r[i]) for r in rows)) for i, h in enumerate(header)]
-    print(f"\n{title}")
-    print("  ".join(h.rjust(w) for h, w in zip(header, widths, strict=True)))
-    for r in rows:
-        print("  ".join(c.rjust(w) for c, w in zip(r, widths, strict=True)))
-
 
 LOBES = {
     "beckmann a=0.3 (cos th)": (0.0, 1.0, lambda v: beckmann_cos_pdf(v, 0.3),

@@ -15,30 +15,14 @@ Run:  python benchmarks/bench_core.py [--repeat 5]
 from __future__ import annotations
 
 import argparse
-import time
+
+from _bench import best_of, table  # benchmarks/_bench.py
 
 from ratfit import RationalFitter
 from ratfit.bases import PolynomialSpace
 from ratfit.demo import PAPER_TABLE, addendum_segments
 from ratfit.qp import ConstraintSystem, solve_fixed
 from ratfit.solvers import available_solvers
-
-
-def best_of(fn, repeat: int) -> tuple[float, object]:
-    times, out = [], None
-    for _ in range(repeat):
-        t0 = time.perf_counter()
-        out = fn()
-        times.append(time.perf_counter() - t0)
-    return min(times), out
-
-
-def table(title: str, header: list[str], rows: list[list[str]]) -> None:
-    widths = [max(len(h), *(len(r[i]) for r in rows)) for i, h in enumerate(header)]
-    print(f"\n{title}")
-    print("  ".join(h.rjust(w) for h, w in zip(header, widths, strict=True)))
-    for r in rows:
-        print("  ".join(c.rjust(w) for c, w in zip(r, widths, strict=True)))
 
 
 def main() -> None:
