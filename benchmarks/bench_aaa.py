@@ -25,10 +25,10 @@ import warnings
 import numpy as np
 from scipy.interpolate import AAA
 
-from ratfit.demo import addendum_function
-from ratfit.dense import fit_dense
-from ratfit.search import RationalFitter
-from ratfit.segments import Segments
+from ratfit.core.segments import Segments
+from ratfit.demos.addendum import addendum_function
+from ratfit.fitting.dense import fit_dense
+from ratfit.fitting.search import RationalFitter
 
 X = np.linspace(-3.0, 12.0, 500)
 Y = addendum_function(X)

@@ -32,10 +32,10 @@ from pathlib import Path  # noqa: E402
 import numpy as np  # noqa: E402
 from _bench import table  # noqa: E402  (benchmarks/_bench.py)
 
-from ratfit import batch  # noqa: E402
-from ratfit.dataio import read_data, write_csv  # noqa: E402
-from ratfit.search import RationalFitter  # noqa: E402
-from ratfit.segments import Segments  # noqa: E402
+from ratfit.batch import runner as batch  # noqa: E402
+from ratfit.core.segments import Segments  # noqa: E402
+from ratfit.fitting.search import RationalFitter  # noqa: E402
+from ratfit.io.data import read_data, write_csv  # noqa: E402
 
 FUNCS = (
     lambda x: np.exp(np.sin(3 * x)) + 0.5,

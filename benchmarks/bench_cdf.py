@@ -23,8 +23,8 @@ import numpy as np
 from _bench import best_of, table  # benchmarks/_bench.py
 from scipy.integrate import cumulative_trapezoid
 
-from ratfit.cdf import MonotoneFitter, cdf_from_pdf
-from ratfit.sampling import (
+from ratfit.cdf.monotone import MonotoneFitter, cdf_from_pdf
+from ratfit.cdf.sampling import (
     RationalCDF,
     beckmann_cos_cdf,
     beckmann_cos_pdf,

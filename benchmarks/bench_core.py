@@ -19,10 +19,10 @@ import argparse
 from _bench import best_of, table  # benchmarks/_bench.py
 
 from ratfit import RationalFitter
-from ratfit.bases import PolynomialSpace
-from ratfit.demo import PAPER_TABLE, addendum_segments
-from ratfit.qp import ConstraintSystem, solve_fixed
-from ratfit.solvers import available_solvers
+from ratfit.core.bases import PolynomialSpace
+from ratfit.core.qp import ConstraintSystem, solve_fixed
+from ratfit.core.solvers import available_solvers
+from ratfit.demos.addendum import PAPER_TABLE, addendum_segments
 
 
 def main() -> None:

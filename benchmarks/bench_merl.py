@@ -37,8 +37,8 @@ def one(path: str, size: int, dt: float, jobs: int, param: str) -> dict:
     """Read the MERL file and fit it; runs in a child process."""
     import resource
 
-    from ratfit.brdf import fit_brdf
-    from ratfit.brdfio import brdf_dataset
+    from ratfit.brdf.fitter import fit_brdf
+    from ratfit.brdf.io import brdf_dataset
 
     t0 = time.perf_counter()
     ds = brdf_dataset(path, param, max_points=size or None)
@@ -66,7 +66,7 @@ def main() -> None:
     if a.child:
         print(json.dumps(one(a.child[0], int(a.child[1]), a.dt, a.jobs, a.param)))
         return
-    from ratfit.brdfio import merl_from_function, read_merl, write_merl
+    from ratfit.brdf.io import merl_from_function, read_merl, write_merl
 
     with tempfile.TemporaryDirectory() as tmp:
         path = str(Path(tmp) / "synthetic.binary")

@@ -19,8 +19,8 @@ import time
 
 import numpy as np
 
-from ratfit.demo import addendum_function
-from ratfit.tolerance import aaa_error, best_width
+from ratfit.demos.addendum import addendum_function
+from ratfit.fitting.tolerance import aaa_error, best_width
 
 
 def main() -> None:

@@ -1,8 +1,8 @@
 """Rational BRDF fits against the best analytic model on real data (Cornell, ALTA retro).
 
-For each data set: one verified rational fit per channel (ratfit.brdf.fit_brdf) and
-least-squares fits of several analytic models (ratfit.models); every row reports
-the coefficients used, RMSE and relative RMSE on all samples (ratfit.brdf.brdf_metrics),
+For each data set: one verified rational fit per channel (ratfit.brdf.fitter.fit_brdf) and
+least-squares fits of several analytic models (ratfit.brdf.analytic_models); every row reports
+the coefficients used, RMSE and relative RMSE on all samples (ratfit.brdf.fitter.brdf_metrics),
 and the ratio of each RMSE to the rational fit's (the baseline, same run).
 
     python benchmarks/compare_models.py [--data DIR] [--only NAME]
@@ -21,10 +21,10 @@ from pathlib import Path
 
 import numpy as np
 
-from ratfit.brdf import BRDFFit, brdf_metrics, fit_brdf
-from ratfit.brdfio import brdf_dataset
-from ratfit.params import get_parametrization
-from ratfit.report import cos_factor, model_fit_for
+from ratfit.brdf.fitter import BRDFFit, brdf_metrics, fit_brdf
+from ratfit.brdf.io import brdf_dataset
+from ratfit.brdf.parametrizations import get_parametrization
+from ratfit.viz.report import cos_factor, model_fit_for
 
 REPO = Path(__file__).resolve().parents[1]
 MODELS = ("lambert+blinn", "lambert+ward", "lambert+beckmann", "lambert+ggx",
@@ -51,7 +51,7 @@ def run_case(path: Path, param: str | None, settings: dict, max_total: int):
     secs = time.perf_counter() - t0
     ok = all(r.success for r in fitter.results_)
     if ok:
-        from ratfit.fitfile import fit_document, parse_fit
+        from ratfit.io.fitfile import fit_document, parse_fit
 
         saved = parse_fit(fit_document(fitter.results_, extra={"brdf": meta}))
         pred = BRDFFit(saved, pname).eval_coords(ds.x)

@@ -2,15 +2,14 @@
 
 from __future__ import annotations
 
-from .bases import FAMILIES, PolynomialSpace
-from .errors import FileFormatError, InputError, RatfitError
-from .rational import RationalFunction
-from .results import FitResult
-from .search import RationalFitter, fit
-from .segments import Segments
-from .verify import Verification, verify
-
-__version__ = "0.1.0"
+from ratfit._version import __version__
+from ratfit.core.bases import FAMILIES, PolynomialSpace
+from ratfit.core.rational import RationalFunction
+from ratfit.core.results import FitResult
+from ratfit.core.segments import Segments
+from ratfit.core.verify import Verification, verify
+from ratfit.errors import FileFormatError, InputError, RatfitError
+from ratfit.fitting.search import RationalFitter, fit
 
 __all__ = [
     "FAMILIES",

@@ -1,0 +1,865 @@
+"""Batch fitting on Dask distributed: one task per (input, channel, settings), resumable.
+
+A manifest (TOML or JSON, or the same structure as a dict) names the inputs
+and the fit settings::
+
+    [defaults]                 # every fit (RationalFitter parameters + segment options)
+    dt = 0.05
+    max_total = 40
+
+    [[settings]]               # combinations: every input is fitted with each of them
+    basis = "legendre"
+    [[settings]]
+    basis = "chebyshev"
+
+    [[inputs]]
+    path = "data/*.dat"        # glob, relative to the manifest's folder
+    format = "nist"            # per-entry override (beats defaults and combinations)
+    channels = [0]             # 0-based indices or names (default: every channel)
+
+An entry may also be a bare glob string, or carry its own ``settings`` list
+(replacing the global combinations). Precedence: built-in defaults < ``defaults``
+< combination < entry.
+
+Layout of OUTDIR, one file per finished task, each written atomically::
+
+    <input>.<channel>.<settings id>.json   verified fit (``ratfit.fitfile``); its
+                                           provenance["batch"] holds the summary row
+    .rows/<same name>.json                 row of a task with no verified fit ("no-fit")
+                                           or that raised ("failed")
+    summary.csv, summary.parquet           one row per task, rewritten at the end
+
+The client writes every file (workers only compute), so a worker that dies or a
+Ctrl-C cannot leave a partial file, and with ``scheduler=`` only the inputs need
+to be visible to the workers (at the same absolute paths). Resume: a task whose
+fit file (or no-fit/failed row) exists for the same input content and settings is
+not run again; failed and no-fit tasks run again only with ``rerun_failed``.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import csv
+import glob
+import hashlib
+import json
+import math
+import os
+import re
+import sys
+import time
+import tomllib
+import traceback
+import uuid
+import warnings
+from collections import OrderedDict
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from ratfit._atomic import atomic_open, atomic_path
+from ratfit.errors import InputError, RatfitError
+
+__all__ = [
+    "COLUMNS",
+    "FIT_PARAMS",
+    "BatchInterrupted",
+    "BatchSummary",
+    "MissingDependency",
+    "Task",
+    "execute",
+    "load_manifest",
+    "plan",
+    "run",
+    "settings_id",
+    "write_summary",
+]
+
+INSTALL_HINT = 'pip install "ratfit[batch]"'
+ROWS_DIR = ".rows"
+SUMMARY_STEM = "summary"
+
+# Summary columns, in order: what a lab sorts and filters a database of fits by.
+COLUMNS: tuple[str, ...] = (
+    "input", "channel", "settings_id", "status", "n", "m", "total", "verified",
+    "linf", "l2", "max_rel_error", "max_violation", "qp_solves", "seconds",
+    "wall_seconds", "message", "fit_file", "settings", "resumed",
+)
+STATUSES = ("ok", "no-fit", "failed", "pending")
+
+
+class MissingDependency(RatfitError):
+    """dask.distributed or pyarrow is not installed (the ``batch`` extra)."""
+
+
+class BatchInterrupted(KeyboardInterrupt):
+    """Ctrl-C during a batch: futures cancelled, finished results kept, summary written."""
+
+    def __init__(self, summary: BatchSummary) -> None:
+        super().__init__("batch interrupted")
+        self.summary = summary
+
+
+# ---------------------------------------------------------------------------- settings
+_CHOICES: dict[str, tuple[str, ...]] = {}
+
+
+def _choices() -> dict[str, tuple[str, ...]]:
+    if not _CHOICES:
+        from ratfit.core.bases import FAMILIES, INDEX_SETS
+        from ratfit.core.qp import CROSS_CHECKS
+        from ratfit.core.solvers import SOLVERS
+        from ratfit.fitting.search import SPLIT_RULES, STRATEGIES
+        from ratfit.io.data import FORMATS
+
+        _CHOICES.update(
+            basis=tuple(FAMILIES), index_set=tuple(INDEX_SETS), strategy=STRATEGIES,
+            split_rule=SPLIT_RULES, cross_check=tuple(CROSS_CHECKS), solver=tuple(SOLVERS),
+            format=tuple(FORMATS),
+        )
+    return _CHOICES
+
+
+# Every setting with its built-in default. All but ``jobs`` enter the settings id
+# (``jobs`` changes how fast, not what). ``jobs`` defaults to 1: Dask supplies the
+# parallelism, threads inside each task would only oversubscribe the cores.
+DEFAULTS: dict[str, Any] = {
+    "basis": "legendre", "index_set": "total", "domain": None, "n": None, "m": None,
+    "total": None, "min_total": 2, "max_total": None, "strategy": "staircase",
+    "split_rule": "min-m", "solver": "quadprog", "cross_check": "orth", "active_set": None,
+    "jobs": 1, "dt": None, "abs_width": None, "format": None, "dim": None, "monomial": True,
+}
+FIT_PARAMS = (
+    "basis", "index_set", "domain", "n", "m", "total", "min_total", "max_total", "strategy",
+    "split_rule", "solver", "cross_check", "active_set", "jobs",
+)
+_NOT_HASHED = ("jobs",)
+_INT_MIN = {"n": 1, "m": 1, "total": 2, "min_total": 2, "max_total": 2, "jobs": 1, "dim": 1}
+ENTRY_KEYS = ("path", "channels", "settings")
+TOP_KEYS = ("inputs", "defaults", "settings")
+
+
+def _check_setting(key: str, value: Any, where: str) -> Any:
+    """One setting's value, normalised (floats as float), or InputError naming ``where``."""
+    bad = f"{where}: {key} must be"
+    choices = _choices()
+    if key in choices:
+        if key == "format" and value is None:
+            return None
+        if not isinstance(value, str) or value.lower() not in choices[key]:
+            raise InputError(f"{bad} one of {', '.join(choices[key])}, got {value!r}")
+        if key == "solver":
+            from ratfit.core.solvers import check_solver
+
+            try:
+                check_solver(value.lower())
+            except InputError as exc:
+                raise InputError(f"{where}: {exc}") from None
+        return value.lower()
+    if key in _INT_MIN:
+        if value is None and key not in ("min_total", "jobs"):
+            return None
+        if isinstance(value, bool) or not isinstance(value, int) or value < _INT_MIN[key]:
+            raise InputError(f"{bad} an integer >= {_INT_MIN[key]}, got {value!r}")
+        return value
+    if key in ("dt", "abs_width"):
+        if value is None:
+            return None
+        if (isinstance(value, bool) or not isinstance(value, (int, float))
+                or not math.isfinite(value) or value <= 0):
+            raise InputError(f"{bad} a finite number > 0, got {value!r}")
+        if key == "dt" and value >= 1:
+            raise InputError(f"{bad} < 1 (a relative width: [(1-dt) y, (1+dt) y]), got {value!r}")
+        return float(value)
+    if key == "monomial":
+        if not isinstance(value, bool):
+            raise InputError(f"{bad} true or false, got {value!r}")
+        return value
+    if key == "active_set":
+        if value is not None and not isinstance(value, bool):
+            raise InputError(f"{bad} true, false or absent (automatic), got {value!r}")
+        return value
+    if key == "domain":
+        if value is None:
+            return None
+        msg = f"{bad} a list of [lo, hi] pairs (one per input dimension), got {value!r}"
+        if not isinstance(value, list) or not value:
+            raise InputError(msg)
+        out = []
+        for pair in value:
+            if (not isinstance(pair, list) or len(pair) != 2
+                    or not all(isinstance(v, (int, float)) and not isinstance(v, bool)
+                               and math.isfinite(v) for v in pair)
+                    or not pair[0] < pair[1]):
+                raise InputError(msg)
+            out.append([float(pair[0]), float(pair[1])])
+        return out
+    raise InputError(f"{where}: unknown key {key!r}")  # pragma: no cover (filtered before)
+
+
+def _check_table(table: Any, where: str, allowed: tuple[str, ...]) -> dict[str, Any]:
+    if not isinstance(table, Mapping):
+        raise InputError(f"{where}: must be a table of settings, got {type(table).__name__}")
+    out: dict[str, Any] = {}
+    for key, value in table.items():
+        if key not in allowed:
+            raise InputError(
+                f"{where}: unknown key {key!r}; valid keys: {', '.join(allowed)}"
+            )
+        if key in DEFAULTS:
+            out[key] = _check_setting(key, value, where)
+        else:
+            out[key] = value
+    return out
+
+
+def _check_combined(settings: dict[str, Any], where: str) -> None:
+    """Rules between settings (the same as ``ratfit fit``'s)."""
+    if (settings["n"] is None) != (settings["m"] is None):
+        raise InputError(f"{where}: give both n and m, or neither")
+    if settings["n"] is not None and settings["total"] is not None:
+        raise InputError(f"{where}: n/m and total are exclusive")
+    mx = settings["max_total"]
+    if mx is not None and mx < settings["min_total"]:
+        raise InputError(
+            f"{where}: max_total must be >= min_total={settings['min_total']}, got {mx}"
+        )
+
+
+def _check_channels(value: Any, where: str) -> tuple[int | str, ...] | None:
+    if value is None:
+        return None
+    vals = value if isinstance(value, list) else [value]
+    ok = vals and all(
+        isinstance(v, str) or (isinstance(v, int) and not isinstance(v, bool) and v >= 0)
+        for v in vals
+    )
+    if not ok:
+        raise InputError(
+            f"{where}: channels must be 0-based indices or channel names, got {value!r}"
+        )
+    return tuple(vals)
+
+
+def settings_id(settings: Mapping[str, Any]) -> str:
+    """Short hash of the settings that change a result (stable across runs and machines)."""
+    keyed = {k: settings[k] for k in sorted(DEFAULTS) if k not in _NOT_HASHED}
+    text = json.dumps(keyed, sort_keys=True, separators=(",", ":"))
+    return hashlib.sha256(text.encode()).hexdigest()[:10]
+
+
+# ---------------------------------------------------------------------------- manifest
+@dataclass(frozen=True)
+class _Entry:
+    index: int
+    pattern: str
+    where: str
+    paths: tuple[Path, ...]
+    labels: tuple[str, ...]
+    channels: tuple[int | str, ...] | None
+    combos: tuple[dict[str, Any], ...]
+
+
+def load_manifest(
+    manifest: str | os.PathLike[str] | Mapping[str, Any],
+    base_dir: str | os.PathLike[str] | None = None,
+) -> tuple[list[_Entry], Path, str]:
+    """Parse and validate a manifest; returns (entries, base folder, name for messages)."""
+    if isinstance(manifest, Mapping):
+        doc: Any = manifest
+        base = Path(base_dir) if base_dir is not None else Path.cwd()
+        name = "manifest"
+    else:
+        path = Path(manifest)
+        name = str(path)
+        base = Path(base_dir) if base_dir is not None else path.resolve().parent
+        doc = _read_manifest(path)
+    base = base.resolve()
+    if not isinstance(doc, Mapping):
+        raise InputError(f"{name}: the manifest must be a table (JSON object)")
+    for key in doc:
+        if key not in TOP_KEYS:
+            raise InputError(f"{name}: unknown key {key!r}; valid keys: {', '.join(TOP_KEYS)}")
+    allowed = (*DEFAULTS, "channels")
+    defaults = _check_table(doc.get("defaults", {}), f"{name}: defaults", allowed)
+    top_channels = _check_channels(defaults.pop("channels", None), f"{name}: defaults")
+    combos = _combos(doc.get("settings"), f"{name}: settings")
+    inputs = doc.get("inputs")
+    if isinstance(inputs, str):
+        inputs = [inputs]
+    if not isinstance(inputs, list) or not inputs:
+        raise InputError(f"{name}: no inputs: give inputs = [\"data/*.csv\", ...]")
+    entries = []
+    for i, raw in enumerate(inputs):
+        where = f"{name}: inputs[{i}]"
+        if isinstance(raw, str):
+            raw = {"path": raw}
+        pattern = raw.get("path") if isinstance(raw, Mapping) else None
+        if not isinstance(pattern, str) or not pattern.strip():
+            raise InputError(f"{where}: needs a path (a file name or glob), got {pattern!r}")
+        where = f"{where} ({pattern!r})"
+        table = _check_table(raw, where, (*ENTRY_KEYS, *DEFAULTS))
+        del table["path"]
+        channels = _check_channels(table.pop("channels", None), where)
+        if channels is None:
+            channels = top_channels
+        own = table.pop("settings", None)
+        entry_combos = _combos(own, f"{where}: settings") if own is not None else combos
+        merged = []
+        for j, combo in enumerate(entry_combos):
+            s = {**DEFAULTS, **defaults, **combo, **table}
+            _check_combined(s, where if len(entry_combos) == 1 else f"{where}, settings[{j}]")
+            merged.append(s)
+        paths, labels = _expand(pattern, base, where)
+        entries.append(_Entry(i, pattern, where, paths, labels, channels, tuple(merged)))
+    return entries, base, name
+
+
+def _read_manifest(path: Path) -> Any:
+    if not path.is_file():
+        raise InputError(f"{path}: no such manifest file")
+    suffix = path.suffix.lower()
+    if suffix not in (".toml", ".json"):
+        raise InputError(f"{path}: a manifest must be a .toml or .json file")
+    try:
+        data = path.read_bytes()
+    except OSError as exc:
+        raise InputError(f"{path}: cannot read: {exc.strerror or exc}") from None
+    try:
+        text = data.decode("utf-8")
+    except UnicodeDecodeError:
+        raise InputError(f"{path}: not a text file (not UTF-8)") from None
+    if suffix == ".toml":
+        try:
+            return tomllib.loads(text)
+        except tomllib.TOMLDecodeError as exc:
+            raise InputError(f"{path}: invalid TOML: {exc}") from None
+    try:
+        return json.loads(text)
+    except json.JSONDecodeError as exc:
+        raise InputError(f"{path}: invalid JSON at line {exc.lineno}: {exc.msg}") from None
+
+
+def _combos(raw: Any, where: str) -> tuple[dict[str, Any], ...]:
+    if raw is None:
+        return ({},)
+    if not isinstance(raw, list) or not raw:
+        raise InputError(f"{where}: must be a non-empty list of tables ([[settings]])")
+    return tuple(_check_table(t, f"{where}[{j}]", tuple(DEFAULTS)) for j, t in enumerate(raw))
+
+
+_MAGIC = re.compile(r"[*?\[]")
+
+
+def _expand(pattern: str, base: Path, where: str) -> tuple[tuple[Path, ...], tuple[str, ...]]:
+    """Files matched by ``pattern`` and their names relative to its fixed leading folders."""
+    pat = Path(os.path.expanduser(pattern))
+    full = pat if pat.is_absolute() else base / pat
+    parts = full.parts
+    fixed = 0
+    while fixed < len(parts) - 1 and not _MAGIC.search(parts[fixed]):
+        fixed += 1
+    root = Path(*parts[:fixed])
+    found = sorted(
+        {Path(p).resolve() for p in glob.glob(str(full), recursive=True) if Path(p).is_file()}
+    )
+    if not found:
+        raise InputError(f"{where}: matched no file (looked for {full})")
+    labels = []
+    for p in found:
+        try:
+            rel = Path(os.path.relpath(p, root.resolve()))
+        except ValueError:  # pragma: no cover (another drive on Windows)
+            rel = Path(p.name)
+        labels.append(rel.with_suffix("").as_posix())
+    return tuple(found), tuple(labels)
+
+
+# ---------------------------------------------------------------------------- planning
+@dataclass(frozen=True)
+class Task:
+    """One fit: what a worker needs, and the deterministic name of its result."""
+
+    name: str
+    input: str
+    path: str
+    input_sha256: str
+    channel: str
+    channel_index: int
+    settings_id: str
+    settings: dict[str, Any] = field(hash=False)
+
+
+_SAFE = re.compile(r"[^A-Za-z0-9._-]+")
+
+
+def _safe(text: str) -> str:
+    return _SAFE.sub("_", text).strip("._") or "_"
+
+
+def _display(path: Path, base: Path) -> str:
+    try:
+        return path.relative_to(base).as_posix()
+    except ValueError:
+        return str(path)
+
+
+def plan(
+    manifest: str | os.PathLike[str] | Mapping[str, Any],
+    base_dir: str | os.PathLike[str] | None = None,
+) -> tuple[list[Task], list[dict[str, Any]]]:
+    """Every task of a manifest, in manifest order, plus rows for inputs that cannot be read.
+
+    Each input is read once here (to learn its channels and check the segment
+    options); a file that cannot be read is a "failed" row, not an error, so one
+    bad file among hundreds does not stop the batch.
+    """
+    from ratfit.io.data import read_data
+    from ratfit.io.fitfile import file_sha256
+
+    entries, base, _ = load_manifest(manifest, base_dir)
+    tasks: list[Task] = []
+    unreadable: list[dict[str, Any]] = []
+    seen: dict[str, Task] = {}
+    cache: dict[tuple[Path, str | None, int | None], Any] = {}
+    digests: dict[Path, str] = {}
+    for e in entries:
+        for path, label in zip(e.paths, e.labels, strict=True):
+            shown = _display(path, base)
+            for s in e.combos:
+                sid = settings_id(s)
+                key = (path, s["format"], s["dim"])
+                if key not in cache:
+                    try:
+                        cache[key] = read_data(path, fmt=s["format"], dim=s["dim"])
+                    except (RatfitError, OSError) as exc:
+                        cache[key] = exc
+                data = cache[key]
+                if isinstance(data, Exception):
+                    unreadable.append(_row(shown, "", sid, s, "failed", message=str(data)))
+                    continue
+                try:
+                    data.segments(dt=s["dt"], abs_width=s["abs_width"])
+                except RatfitError as exc:
+                    raise InputError(f"{e.where}: {exc}") from None
+                if path not in digests:
+                    digests[path] = file_sha256(path)
+                for j in _channel_indices(e, data, shown):
+                    chan = data.output_names[j]
+                    name = f"{_safe(label.replace('/', '--'))}.{_safe(chan)}.{sid}"
+                    task = Task(name, shown, str(path), digests[path], chan, j, sid, s)
+                    prev = seen.get(name)
+                    if prev is not None:
+                        if prev.path != task.path:
+                            raise InputError(
+                                f"{e.where}: {prev.path} and {path} both give the result "
+                                f"name {name!r}; match them with one glob (e.g. '*/file.csv') "
+                                "so that their folder becomes part of the name"
+                            )
+                        continue  # the same fit asked for twice
+                    seen[name] = task
+                    tasks.append(task)
+    return tasks, unreadable
+
+
+def _channel_indices(e: _Entry, data: Any, shown: str) -> list[int]:
+    names = list(data.output_names)
+    if e.channels is None:
+        return list(range(len(names)))
+    out = []
+    for c in e.channels:
+        if isinstance(c, int):
+            if c >= len(names):
+                raise InputError(
+                    f"{e.where}: channel {c} does not exist in {shown} "
+                    f"({len(names)} channel(s): {', '.join(names)})"
+                )
+            out.append(c)
+        elif c in names:
+            out.append(names.index(c))
+        else:
+            raise InputError(
+                f"{e.where}: no channel named {c!r} in {shown} (channels: {', '.join(names)})"
+            )
+    return list(dict.fromkeys(out))
+
+
+def _row(input_: str, channel: str, sid: str, settings: Mapping[str, Any], status: str, *,
+         message: str = "", **values: Any) -> dict[str, Any]:
+    row: dict[str, Any] = dict.fromkeys(COLUMNS)
+    row.update(
+        input=input_, channel=channel, settings_id=sid, status=status, message=message,
+        settings=json.dumps({k: settings[k] for k in sorted(settings)}, separators=(",", ":")),
+        resumed=False, verified=False, fit_file="",
+    )
+    row.update(values)
+    return row
+
+
+# ---------------------------------------------------------------------------- worker side
+_DATA: OrderedDict[tuple, Any] = OrderedDict()
+_DATA_KEEP = 4
+
+
+def _dataset(path: str, fmt: str | None, dim: int | None) -> Any:
+    """Read an input once per worker process (tasks of one input share it)."""
+    from ratfit.io.data import read_data
+
+    st = os.stat(path)
+    key = (path, fmt, dim, st.st_mtime_ns, st.st_size)
+    if key in _DATA:
+        _DATA.move_to_end(key)
+        return _DATA[key]
+    data = read_data(path, fmt=fmt, dim=dim)
+    _DATA[key] = data
+    while len(_DATA) > _DATA_KEEP:
+        _DATA.popitem(last=False)
+    return data
+
+
+def execute(task: Task) -> tuple[dict[str, Any], dict[str, Any] | None]:
+    """Run one task (on a worker): its summary row and, when verified, its fit document.
+
+    Never raises for a bad fit or bad data: the exception becomes a "failed" row
+    with its message, so one task cannot stop the batch.
+    """
+    t0 = time.perf_counter()
+    s = task.settings
+    base = (task.input, task.channel, task.settings_id, s)
+    try:
+        from ratfit.core.segments import Segments
+        from ratfit.fitting.search import RationalFitter
+        from ratfit.io.fitfile import fit_document
+
+        data = _dataset(task.path, s["format"], s["dim"])
+        seg = data.segments(dt=s["dt"], abs_width=s["abs_width"])
+        j = task.channel_index
+        seg = Segments(seg.x, seg.lo[:, [j]], seg.hi[:, [j]],
+                       None if seg.y is None else seg.y[:, [j]], (seg.names[j],))
+        fitter = RationalFitter(**{k: s[k] for k in FIT_PARAMS}).fit(seg)
+        r = fitter.result_
+        summ = r.summary()
+        values = {k: summ[k] for k in ("n", "m", "total", "verified", "linf", "l2",
+                                       "max_rel_error", "max_violation", "qp_solves")}
+        values["seconds"] = summ["seconds"]
+        if not r.success:
+            values["wall_seconds"] = round(time.perf_counter() - t0, 6)
+            return _row(*base, "no-fit", message=r.message, **values), None
+        notes: list[str] = []
+        mono = None
+        if s["monomial"]:
+            mono = [_monomial(r, seg, notes)]
+        doc = fit_document([r], monomial=mono, provenance={
+            "input": task.input, "input_sha256": task.input_sha256,
+            "n_points": seg.n_points, "solver": s["solver"],
+            "segments": {"dt": s["dt"], "abs_width": s["abs_width"],
+                         "explicit": s["dt"] is None and s["abs_width"] is None},
+        })
+        values["wall_seconds"] = round(time.perf_counter() - t0, 6)
+        return _row(*base, "ok", message="; ".join(notes), **values), doc
+    except Exception as exc:  # one task's failure is a row, never the batch's
+        msg = f"{type(exc).__name__}: {exc}" if not isinstance(exc, RatfitError) else str(exc)
+        if not isinstance(exc, RatfitError):
+            where = traceback.extract_tb(exc.__traceback__)[-1]
+            msg += f" (at {Path(where.filename).name}:{where.lineno})"
+        return _row(*base, "failed", message=msg,
+                    wall_seconds=round(time.perf_counter() - t0, 6)), None
+
+
+def _monomial(r: Any, seg: Any, notes: list[str]) -> dict[str, Any] | None:
+    from ratfit.core.monomial import to_monomial
+    from ratfit.errors import AccuracyWarning
+
+    try:
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always", AccuracyWarning)
+            mf = to_monomial(r.rational, seg.x)
+    except Exception as exc:  # an optional extra: the verified fit is kept without it
+        notes.append(f"no monomial form ({type(exc).__name__}: {exc})")
+        return None
+    notes.extend(f"monomial form: {w.message}" for w in caught)
+    return mf.to_dict()
+
+
+# ---------------------------------------------------------------------------- results on disk
+@dataclass
+class BatchSummary:
+    """What a batch did: one row per task (plan order), and where the files are."""
+
+    rows: list[dict[str, Any]]
+    outdir: Path
+    csv: Path
+    parquet: Path
+    fitted: int = 0
+    skipped: int = 0
+
+    @property
+    def counts(self) -> dict[str, int]:
+        out = dict.fromkeys(STATUSES, 0)
+        for r in self.rows:
+            out[r["status"]] += 1
+        return out
+
+    @property
+    def ok(self) -> bool:
+        return all(r["status"] == "ok" for r in self.rows)
+
+
+def _fit_path(outdir: Path, task: Task) -> Path:
+    return outdir / f"{task.name}.json"
+
+
+def _row_path(outdir: Path, task: Task) -> Path:
+    return outdir / ROWS_DIR / f"{task.name}.json"
+
+
+def _previous(outdir: Path, task: Task) -> dict[str, Any] | None:
+    """The stored row of a finished task, if it is for the same input content."""
+    fp = _fit_path(outdir, task)
+    if fp.is_file():
+        try:
+            doc = json.loads(fp.read_text())
+            row = doc["provenance"]["batch"]
+            if (doc["provenance"].get("input_sha256") == task.input_sha256
+                    and row["settings_id"] == task.settings_id and row["status"] == "ok"):
+                return row
+        except (OSError, ValueError, KeyError, TypeError):
+            pass  # unreadable or foreign file: fit again (atomically replaced)
+    rp = _row_path(outdir, task)
+    if rp.is_file():
+        try:
+            row = json.loads(rp.read_text())
+            same = row.get("input_sha256") == task.input_sha256
+            if same and row["status"] in ("no-fit", "failed"):
+                return row
+        except (OSError, ValueError, KeyError, TypeError):
+            pass
+    return None
+
+
+def _store(outdir: Path, task: Task, row: dict[str, Any], doc: dict[str, Any] | None) -> None:
+    """Write one result atomically and drop what it supersedes."""
+    if doc is not None:
+        row["fit_file"] = _fit_path(outdir, task).name
+        doc["provenance"]["command"] = sys.argv
+        doc["provenance"]["batch"] = _public(row)
+        from ratfit.io.fitfile import save_fit
+
+        save_fit(_fit_path(outdir, task), doc)
+        _row_path(outdir, task).unlink(missing_ok=True)
+    else:
+        stored = {**_public(row), "input_sha256": task.input_sha256}
+        with atomic_open(_row_path(outdir, task)) as fh:
+            json.dump(stored, fh, indent=1, allow_nan=False)
+        _fit_path(outdir, task).unlink(missing_ok=True)
+
+
+def _public(row: Mapping[str, Any]) -> dict[str, Any]:
+    return {k: row.get(k) for k in COLUMNS}
+
+
+def write_summary(rows: list[dict[str, Any]], outdir: Path) -> tuple[Path, Path]:
+    """summary.csv and summary.parquet (atomic), one row per task."""
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    csv_path = outdir / f"{SUMMARY_STEM}.csv"
+    pq_path = outdir / f"{SUMMARY_STEM}.parquet"
+    public = [_public(r) for r in rows]
+    with atomic_open(csv_path, "w") as fh:
+        w = csv.DictWriter(fh, fieldnames=COLUMNS, lineterminator="\n")
+        w.writeheader()
+        for r in public:
+            w.writerow({k: "" if v is None else v for k, v in r.items()})
+    types = {"n": pa.int64(), "m": pa.int64(), "total": pa.int64(), "qp_solves": pa.int64(),
+             "verified": pa.bool_(), "resumed": pa.bool_()}
+    for k in ("linf", "l2", "max_rel_error", "max_violation", "seconds", "wall_seconds"):
+        types[k] = pa.float64()
+    schema = pa.schema([(k, types.get(k, pa.string())) for k in COLUMNS])
+    table = pa.Table.from_pylist(public, schema=schema)
+    with atomic_path(pq_path) as tmp:
+        pq.write_table(table, tmp)
+    return csv_path, pq_path
+
+
+# ---------------------------------------------------------------------------- running
+def _require() -> None:
+    missing = []
+    for mod in ("distributed", "pyarrow"):
+        try:
+            __import__(mod)
+        except ImportError:
+            missing.append(mod)
+    if missing:
+        raise MissingDependency(
+            f"batch fitting needs {' and '.join(missing)}, which is not installed: "
+            f"{INSTALL_HINT}"
+        )
+
+
+@contextlib.contextmanager
+def _cluster(client: Any, scheduler: str | None, workers: int | None, allowed_failures: int):
+    """The client to use; a LocalCluster or a connection we open is closed on exit."""
+    if client is not None:
+        yield client
+        return
+    import logging
+
+    import dask
+    from distributed import Client, LocalCluster
+
+    if scheduler is not None:
+        try:
+            own = Client(scheduler, timeout="10s")
+        except (OSError, TimeoutError) as exc:
+            raise InputError(f"cannot connect to the Dask scheduler at {scheduler}: {exc}") \
+                from None
+        try:
+            yield own
+        finally:
+            own.close()
+        return
+    n = workers or os.cpu_count() or 1
+    with dask.config.set({"distributed.scheduler.allowed-failures": allowed_failures}):
+        cluster = LocalCluster(n_workers=n, processes=True, threads_per_worker=1,
+                               dashboard_address=None, silence_logs=logging.ERROR)
+    try:
+        own = Client(cluster)
+        try:
+            yield own
+        finally:
+            own.close()
+    finally:
+        cluster.close()
+
+
+def run(
+    manifest: str | os.PathLike[str] | Mapping[str, Any],
+    client: Any = None,
+    *,
+    outdir: str | os.PathLike[str],
+    scheduler: str | None = None,
+    workers: int | None = None,
+    base_dir: str | os.PathLike[str] | None = None,
+    rerun_failed: bool = False,
+    allowed_failures: int = 3,
+    progress: bool = False,
+    on_result: Callable[[dict[str, Any]], None] | None = None,
+) -> BatchSummary:
+    """Fit every (input, channel, settings) of ``manifest`` on Dask; returns the summary.
+
+    ``client``: an existing ``distributed.Client`` (kept open). Else ``scheduler``
+    (address of a running scheduler) or a LocalCluster of ``workers`` processes
+    (default: one per core, one thread each) started and stopped here;
+    ``allowed_failures`` (that cluster only) is how many worker deaths a task may
+    witness before it is reported as failed. ``on_result(row)`` is called after each
+    result is written (progress hooks; raising KeyboardInterrupt stops the batch
+    like Ctrl-C). Ctrl-C cancels the remaining tasks and raises
+    :class:`BatchInterrupted` (a KeyboardInterrupt) carrying the summary so far.
+    """
+    _require()
+    if isinstance(allowed_failures, bool) or not isinstance(allowed_failures, int) \
+            or allowed_failures < 0:
+        raise InputError(f"allowed_failures must be an integer >= 0, got {allowed_failures!r}")
+    if workers is not None and (isinstance(workers, bool) or not isinstance(workers, int)
+                                or workers < 1):
+        raise InputError(f"workers must be an integer >= 1, got {workers!r}")
+    out = Path(outdir)
+    if out.exists() and not out.is_dir():
+        raise InputError(f"{out}: output folder is a file")
+    tasks, unreadable = plan(manifest, base_dir)  # atomic writes create ``out`` when needed
+    rows: dict[str, dict[str, Any]] = {}
+    todo: list[Task] = []
+    for t in tasks:
+        prev = _previous(out, t)
+        if prev is not None and (prev["status"] == "ok" or not rerun_failed):
+            rows[t.name] = {**_public(prev), "resumed": True}
+        else:
+            todo.append(t)
+    summary = BatchSummary([], out, out / f"{SUMMARY_STEM}.csv",
+                           out / f"{SUMMARY_STEM}.parquet", skipped=len(rows))
+
+    def finish(partial: bool) -> BatchSummary:
+        ordered = []
+        for t in tasks:
+            r = rows.get(t.name)
+            if r is None and partial:
+                r = _row(t.input, t.channel, t.settings_id, t.settings, "pending",
+                         message="not run (interrupted)")
+            if r is not None:
+                ordered.append(r)
+        summary.rows = ordered + unreadable
+        summary.csv, summary.parquet = write_summary(summary.rows, out)
+        return summary
+
+    if not todo:
+        return finish(False)
+    with _cluster(client, scheduler, workers, allowed_failures) as cl:
+        from distributed import as_completed
+
+        bar = _Bar(len(tasks), len(rows), progress)
+        tag = uuid.uuid4().hex[:8]
+        futures: dict[Any, Task] = {}
+        try:
+            for t in todo:
+                futures[cl.submit(execute, t, key=f"ratfit-{t.name}-{tag}", pure=False)] = t
+            for fut in as_completed(futures):
+                t = futures[fut]
+                try:
+                    row, doc = fut.result()
+                except Exception as exc:  # KilledWorker, lost data, cancellation by others
+                    row, doc = _row(t.input, t.channel, t.settings_id, t.settings, "failed",
+                                    message=f"{type(exc).__name__}: {exc}"), None
+                _store(out, t, row, doc)
+                rows[t.name] = row
+                summary.fitted += 1
+                bar.advance(row["status"])
+                if on_result is not None:
+                    on_result(_public(row))
+        except KeyboardInterrupt:
+            cl.cancel(list(futures))
+            bar.stop()
+            raise BatchInterrupted(finish(True)) from None
+        finally:
+            bar.stop()
+    return finish(False)
+
+
+class _Bar:
+    """A rich progress bar on stderr: done / failed / remaining (terminals only)."""
+
+    def __init__(self, total: int, done: int, enabled: bool) -> None:
+        self.failed = 0
+        self.left = total - done
+        self.p = None
+        if not enabled:
+            return
+        from rich.console import Console
+        from rich.progress import (
+            BarColumn,
+            MofNCompleteColumn,
+            Progress,
+            TextColumn,
+            TimeElapsedColumn,
+        )
+
+        self.p = Progress(
+            TextColumn("fitting"), BarColumn(), MofNCompleteColumn(),
+            TextColumn("{task.fields[failed]} failed or no fit, {task.fields[left]} remaining"),
+            TimeElapsedColumn(), console=Console(stderr=True),
+        )
+        self.task = self.p.add_task("fits", total=total, completed=done, failed=0,
+                                    left=self.left)
+        self.p.start()
+
+    def advance(self, status: str) -> None:
+        self.left -= 1
+        self.failed += status != "ok"
+        if self.p is not None:
+            self.p.update(self.task, advance=1, failed=self.failed, left=self.left)
+
+    def stop(self) -> None:
+        if self.p is not None:
+            self.p.stop()
+            self.p = None

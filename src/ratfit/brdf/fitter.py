@@ -1,0 +1,385 @@
+"""Rational BRDF fits (Pacanowski et al. 2012): segments from measured values,
+one verified rational function per channel in a chosen parametrization.
+
+Options the field uses, all applied before the segments are built:
+
+- cosine weighting: fit f * cos(theta_l) instead of f (the product is bounded
+  at grazing angles, where measured BRDFs blow up); evaluation divides it out;
+- clamping: values below ``clamp`` are raised to it (measured zeros and noise
+  would give zero-width or sign-flipped segments);
+- relative segments [(1-dt) y, (1+dt) y] widened by an absolute floor
+  ``abs_width`` (or ``floor_rel`` times the channel's largest value), each
+  segment taking the larger of the two, so near-zero values stay fittable.
+
+The fit file records the parametrization under the top-level key ``"brdf"``,
+so :func:`load_brdf_fit` gives back a function of directions.
+"""
+
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass, replace
+from typing import Any
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from ratfit.brdf.parametrizations import get_parametrization
+from ratfit.core.bases import PolynomialSpace
+from ratfit.core.qp import ArnoldiSystem, ConstraintSystem
+from ratfit.core.rational import RationalFunction
+from ratfit.core.segments import Segments
+from ratfit.core.verify import Verification, verify
+from ratfit.errors import FileFormatError, InputError
+from ratfit.fitting.search import RationalFitter
+from ratfit.io.data import Dataset
+from ratfit.io.fitfile import SavedFit, fit_document, load_fit, save_fit
+
+__all__ = ["BRDFFit", "BRDFFitter", "brdf_metrics", "brdf_segments", "cos_theta_l", "fit_brdf",
+           "load_brdf_fit", "prepare_values", "save_brdf_fit", "valid_grid"]
+
+Array = NDArray[np.float64]
+_NEEDS_THETA_L = ("full", "isotropic", "tv_tl")
+
+
+def cos_theta_l(coords: ArrayLike, param: str) -> Array:
+    """cos(theta_l) of coordinates; refused where the parametrization does not fix theta_l."""
+    p = get_parametrization(param)
+    if p.invariant not in _NEEDS_THETA_L:
+        raise InputError(
+            f"{p.name} does not determine the light elevation theta_l, so cosine weighting is "
+            "undefined there; use an isotropic or full parametrization"
+        )
+    L, _ = p.to_dirs(coords)
+    return L[:, 2]
+
+
+def prepare_values(ds: Dataset, *, cosine: bool = False, clamp: float | None = None) -> Array:
+    """The values to fit (N, k): y, times cos(theta_l) if ``cosine``, raised to ``clamp``."""
+    if ds.y is None:
+        raise InputError(f"{ds.source} has no values to fit")
+    y = np.array(ds.y, dtype=float)
+    if cosine:
+        y = y * cos_theta_l(ds.x, str(ds.meta.get("param_in")))[:, None]
+    if clamp is not None:
+        if not np.isfinite(clamp) or clamp < 0:
+            raise InputError(f"clamp must be a finite number >= 0, got {clamp!r}")
+        y = np.maximum(y, clamp)
+    return y
+
+
+def brdf_segments(
+    ds: Dataset,
+    *,
+    dt: float | None = None,
+    abs_width: float | None = None,
+    floor_rel: float | None = None,
+    cosine: bool = False,
+    clamp: float | None = None,
+) -> Segments:
+    """Segments for a BRDF dataset; with several widths each segment takes the largest.
+
+    ``floor_rel`` is an absolute half-width per channel: floor_rel x max |y_j|.
+    Without any width the file's own intervals (ALTA #VS 1/2) are used.
+    """
+    if dt is None and abs_width is None and floor_rel is None:
+        if cosine or clamp is not None:
+            raise InputError("cosine weighting and clamping need --dt/--abs-width segments")
+        return ds.segments()
+    y = prepare_values(ds, cosine=cosine, clamp=clamp)
+    for name, v in (("dt", dt), ("abs_width", abs_width), ("floor_rel", floor_rel)):
+        if v is not None and (not np.isfinite(v) or v < 0):
+            raise InputError(f"{name} must be a finite number >= 0, got {v!r}")
+    lo, hi = y.copy(), y.copy()
+    if dt is not None:
+        a, b = (1.0 - dt) * y, (1.0 + dt) * y
+        lo, hi = np.minimum(a, b), np.maximum(a, b)
+    w = np.zeros(y.shape[1])
+    if abs_width is not None:
+        w = np.maximum(w, abs_width)
+    if floor_rel is not None:
+        w = np.maximum(w, floor_rel * np.abs(y).max(axis=0))
+    lo = np.minimum(lo, y - w)
+    hi = np.maximum(hi, y + w)
+    return Segments(ds.x, lo, hi, y, ds.output_names)
+
+
+def fit_brdf(ds: Dataset, *, dt: float | None = None, abs_width: float | None = None,
+             floor_rel: float | None = None, cosine: bool = False, clamp: float | None = None,
+             positive_q: bool = False, **fitter_params: Any):
+    """Fit every channel of a BRDF dataset; returns (fitter, segments, brdf_meta).
+
+    ``fitter_params`` go to :class:`ratfit.fitting.search.RationalFitter` (basis,
+    index_set, max_total, n, m, jobs...). ``positive_q``: see
+    :attr:`BRDFFitter.positive_q`. ``brdf_meta`` is the ``"brdf"`` block of
+    the fit file.
+    """
+    seg = brdf_segments(ds, dt=dt, abs_width=abs_width, floor_rel=floor_rel, cosine=cosine,
+                        clamp=clamp)
+    fitter = BRDFFitter(**fitter_params)
+    fitter.parametrization = str(ds.meta.get("param_in", "UNKNOWN"))
+    fitter.positive_q = bool(positive_q)
+    fitter.fit(seg)
+    meta = {
+        "parametrization": str(ds.meta.get("param_in", "UNKNOWN")),
+        "cosine_weighted": bool(cosine),
+        "positive_q": bool(positive_q),
+        "clamp": clamp,
+        "fold_phi_d": bool(ds.meta.get("fold_phi_d", False)),
+        "param_out": ds.meta.get("param_out"),
+        "channel_names": list(seg.names),
+        "segments": {"dt": dt, "abs_width": abs_width, "floor_rel": floor_rel},
+    }
+    return fitter, seg, meta
+
+
+class BRDFFitter(RationalFitter):
+    """RationalFitter whose pole check covers the physically valid configurations only.
+
+    The box of a BRDF parametrization holds coordinates that describe no pair
+    of directions (e.g. theta_h = theta_d = 80 degrees puts V below the
+    horizon; STARK_2D's hp^2 + b^2 > 1). A denominator that changes sign there
+    can never be evaluated on a BRDF query (``BRDFFit.eval_dirs`` only sees
+    valid pairs), so in n-D a candidate that :func:`ratfit.core.verify.verify`
+    rejects *only* for a sign change of q on its box grid is re-checked: q
+    must keep one strict sign on the data points and on the grid points of
+    the box that are valid configurations (:func:`valid_grid`: directions
+    above the horizon that convert back to the same coordinates). Segment
+    violations, non-finite values and 1-D poles are never relaxed, and an
+    unknown parametrization keeps the plain check.
+    """
+
+    parametrization: str = "UNKNOWN"
+    #: Also constrain q > 0 at the valid grid points inside the QP (rows added
+    #: by the active set only where violated), so that candidates whose q
+    #: changes sign between sparse measurements are not produced at all.
+    positive_q: bool = False
+
+    def _split_system(self, space: PolynomialSpace, seg: Segments, j: int, n: int, m: int,
+                      like: ConstraintSystem | None = None) -> ConstraintSystem | None:
+        system = super()._split_system(space, seg, j, n, m, like=like)
+        if not self.positive_q or space.dim == 1 or not isinstance(system, ArnoldiSystem):
+            return system
+        grid = self._valid_grid_for(space.domain)
+        if grid is None or grid.size == 0:
+            return system
+        return _PositiveQ(system, space.to_window(grid))
+
+    def _valid_grid_for(self, domain: ArrayLike) -> Array | None:
+        dom = np.asarray(domain, dtype=float)
+        key = (str(self.parametrization).upper(), dom.tobytes())
+        cache = getattr(self, "_grid_cache", None)
+        if cache is None or cache[0] != key:
+            cache = (key, valid_grid(self.parametrization, dom))
+            self._grid_cache = cache
+        return cache[1]
+
+    def _valid_grid(self, rf: RationalFunction) -> Array | None:
+        return self._valid_grid_for(rf.space.domain)
+
+    def _verify(self, rf: RationalFunction, seg: Segments, j: int) -> Verification:
+        ver = verify(rf, seg, channel=j)
+        if ver.verified or rf.space.dim == 1 or not ver.denominator_sign_changes:
+            return ver
+        if ver.n_violations or ver.poles_in_domain or not np.isfinite(ver.linf):
+            return ver
+        grid = self._valid_grid(rf)
+        if grid is None:
+            return ver
+        q = np.concatenate([rf.denominator(seg.x), rf.denominator(grid)])
+        if not np.all(np.isfinite(q)):
+            return ver
+        change = bool(np.any(q > 0) and np.any(q < 0)) or bool(np.any(q == 0))
+        return replace(ver, verified=not change, denominator_sign_changes=change)
+
+
+class _PositiveQ(ConstraintSystem):
+    """An ArnoldiSystem plus one row q(g) / |psi(g)| >= delta per valid grid point g.
+
+    Row protocol of :class:`ratfit.core.qp.ConstraintSystem`: rows 0 .. 2N-1 are the
+    data's, rows 2N + i the grid's; the active set starts from data rows only
+    and adds grid rows where q is not positive enough.
+    """
+
+    def __init__(self, base: ArnoldiSystem, t_grid: Array) -> None:
+        self.base = base
+        self.space, self.n_points = base.space, base.n_points
+        self.n, self.m = base.n, base.m
+        psi = base.q_basis.design(t_grid, base.m, window=True)
+        self.psi = psi / np.linalg.norm(psi, axis=1)[:, None]
+
+    @property
+    def n_rows(self) -> int:
+        return self.base.n_rows + self.psi.shape[0]
+
+    def prepare(self, n_max: int, m_max: int) -> None:
+        pass
+
+    def conditioning(self, n: int, m: int) -> tuple[float, float, float]:
+        return self.base.conditioning(n, m)
+
+    def rows(self, n: int, m: int, ridx: NDArray[np.int64] | None = None) -> Array:
+        nb = self.base.n_rows
+        if ridx is None:
+            ridx = np.arange(self.n_rows)
+        out = np.zeros((ridx.size, n + m))
+        data = ridx < nb
+        if data.any():
+            out[data] = self.base.rows(n, m, ridx[data])
+        out[~data, n:] = self.psi[ridx[~data] - nb]
+        return out
+
+    def row_norms(self, n: int, m: int) -> Array:
+        return np.concatenate([self.base.row_norms(n, m), np.ones(self.psi.shape[0])])
+
+    def residuals(self, n: int, m: int, c: Array) -> Array:
+        return np.concatenate([self.base.residuals(n, m, c), self.psi @ c[n:]])
+
+    def initial_rows(self, size: int) -> NDArray[np.int64]:
+        return self.base.initial_rows(size)
+
+    def to_rational(self, n: int, m: int, c: Array) -> RationalFunction:
+        return self.base.to_rational(n, m, c)
+
+
+def valid_grid(param: str, domain: ArrayLike, points: int = 200_000) -> Array | None:
+    """Grid points of the box ``domain`` that are valid configurations of ``param``.
+
+    None when the parametrization is unknown (then the whole box counts).
+    """
+    from ratfit.brdf.parametrizations import PARAMETRIZATIONS
+
+    p = PARAMETRIZATIONS.get(str(param).upper())
+    if p is None:
+        return None
+    dom = np.asarray(domain, dtype=float)
+    per = max(3, int(points ** (1.0 / p.dim)))
+    axes = [np.linspace(lo, hi, per) for lo, hi in dom]
+    g = np.stack([a.ravel() for a in np.meshgrid(*axes, indexing="ij")], axis=1)
+    with np.errstate(all="ignore"):
+        try:
+            L, V = p._to(g)
+        except InputError:
+            return None
+        ok = np.isfinite(L).all(axis=1) & np.isfinite(V).all(axis=1)
+        ok &= (L[:, 2] >= 0) & (V[:, 2] >= 0)
+        back = np.full_like(g, np.nan)
+        if ok.any():
+            back[ok] = p._from(L[ok], V[ok])
+    d = np.abs(back - g)
+    d = np.minimum(d, np.abs(d - 2 * np.pi))  # angles that wrap
+    ok &= np.all(d <= 1e-7 * (1.0 + np.abs(g)), axis=1)
+    return g[ok]
+
+
+def save_brdf_fit(path: str | os.PathLike[str], results, brdf_meta: dict[str, Any],
+                  provenance: dict[str, Any] | None = None) -> None:
+    """Write verified BRDF fits (atomic; refuses unverified ones)."""
+    save_fit(path, fit_document(results, provenance=provenance, extra={"brdf": brdf_meta}))
+
+
+# --------------------------------------------------------------------------- metrics
+def brdf_metrics(pred: ArrayLike, ref: ArrayLike, cos_l: ArrayLike | None = None,
+                 names: tuple[str, ...] | None = None) -> dict[str, dict[str, float]]:
+    """Per-channel errors of ``pred`` against ``ref`` (N, k).
+
+    rmse; rel_rmse: RMS of (pred - ref)/ref over ref != 0; log_rmse: RMSE of
+    log(1 + value) (the compressed error used for glossy data); linf;
+    cos_rmse: RMSE of (pred - ref) cos(theta_l) when ``cos_l`` is given.
+    """
+    p = np.atleast_2d(np.asarray(pred, dtype=float))
+    r = np.atleast_2d(np.asarray(ref, dtype=float))
+    if p.shape[0] == 1 and r.shape[0] != 1:
+        p, r = p.T, r.T
+    if p.shape != r.shape:
+        raise InputError(f"predictions {p.shape} and references {r.shape} differ in shape")
+    names = names or tuple(f"y{j}" for j in range(r.shape[1]))
+    out: dict[str, dict[str, float]] = {}
+    for j, name in enumerate(names):
+        e = p[:, j] - r[:, j]
+        nz = r[:, j] != 0
+        with np.errstate(invalid="ignore", divide="ignore"):
+            logd = np.log1p(np.maximum(p[:, j], -0.999999)) - np.log1p(r[:, j])
+        m = {
+            "rmse": float(np.sqrt(np.mean(e**2))),
+            "rel_rmse": float(np.sqrt(np.mean((e[nz] / r[nz, j]) ** 2))) if nz.any() else 0.0,
+            "log_rmse": float(np.sqrt(np.mean(logd**2))),
+            "linf": float(np.max(np.abs(e))),
+        }
+        if cos_l is not None:
+            c = np.asarray(cos_l, dtype=float).ravel()
+            m["cos_rmse"] = float(np.sqrt(np.mean((e * c) ** 2)))
+        out[name] = m
+    return out
+
+
+# --------------------------------------------------------------------------- saved fits
+@dataclass(frozen=True)
+class BRDFFit:
+    """A saved BRDF fit as a function of directions or of its coordinates."""
+
+    saved: SavedFit
+    parametrization: str
+    cosine_weighted: bool = False
+    fold_phi_d: bool = False
+
+    @property
+    def n_channels(self) -> int:
+        return len(self.saved.channels)
+
+    @property
+    def channel_names(self) -> tuple[str, ...]:
+        return tuple(c.name for c in self.saved.channels)
+
+    def _raw(self, coords: Array) -> Array:
+        c = coords
+        if self.fold_phi_d:
+            c = c.copy()
+            c[:, 2] = np.mod(c[:, 2], np.pi)
+        return self.saved(c)
+
+    def eval_coords(self, coords: ArrayLike) -> Array:
+        """BRDF values (N, k) at coordinates of the fit's parametrization."""
+        p = get_parametrization(self.parametrization)
+        c = np.asarray(coords, dtype=float)
+        if c.ndim == 1:
+            c = c[:, None] if p.dim == 1 else c[None, :]
+        if c.ndim != 2 or c.shape[1] != p.dim:
+            raise InputError(
+                f"{p.name} coordinates have shape (N, {p.dim}), got {np.shape(coords)}"
+            )
+        vals = self._raw(c)
+        if self.cosine_weighted:
+            with np.errstate(divide="ignore", invalid="ignore"):
+                vals = vals / cos_theta_l(c, p.name)[:, None]
+        return vals
+
+    def eval_dirs(self, L: ArrayLike, V: ArrayLike) -> Array:
+        """BRDF values (N, k) for unit directions L, V (N, 3) above the horizon."""
+        p = get_parametrization(self.parametrization)
+        coords = p.from_dirs(L, V)
+        vals = self._raw(coords)
+        if self.cosine_weighted:
+            lz = np.asarray(L, dtype=float).reshape(-1, 3)[:, 2]
+            with np.errstate(divide="ignore", invalid="ignore"):
+                vals = vals / lz[:, None]
+        return vals
+
+
+def load_brdf_fit(path: str | os.PathLike[str]) -> BRDFFit:
+    """Load a fit written by ``ratfit brdf fit`` (it must carry the "brdf" block)."""
+    saved = load_fit(path)
+    meta = saved.extra.get("brdf")
+    if not isinstance(meta, dict) or "parametrization" not in meta:
+        raise FileFormatError(
+            f"{path}: a ratfit fit file without a 'brdf' block: not a BRDF fit "
+            "(written by `ratfit fit`, not `ratfit brdf fit`)"
+        )
+    p = get_parametrization(str(meta["parametrization"]))
+    if p.dim != saved.space.dim:
+        raise FileFormatError(
+            f"{path}: parametrization {p.name} has {p.dim} coordinates but the fit has "
+            f"{saved.space.dim} inputs"
+        )
+    return BRDFFit(saved, p.name, bool(meta.get("cosine_weighted", False)),
+                   bool(meta.get("fold_phi_d", False)))

@@ -1,0 +1,87 @@
+"""`ratfit batch`: fit a manifest of inputs x channels x settings on Dask."""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+import click
+
+from ratfit.cli.main import EXIT_NO_FIT, _write_json, main
+
+EXIT_INTERRUPTED = 130
+
+
+@main.command("batch")
+@click.argument("manifest", type=click.Path(dir_okay=False, path_type=Path))
+@click.option("-o", "--outdir", required=True, type=click.Path(file_okay=False, path_type=Path),
+              help="Folder for the fit files and summary.csv / summary.parquet.")
+@click.option("--scheduler", metavar="ADDRESS",
+              help="Address of a running Dask scheduler (default: start a local cluster).")
+@click.option("--workers", type=click.IntRange(min=1),
+              help="Worker processes of the local cluster (default: one per core).")
+@click.option("--rerun-failed", is_flag=True,
+              help="Run again the tasks that failed or found no verified fit.")
+@click.option("--allowed-failures", type=click.IntRange(min=0), default=3, show_default=True,
+              help="Worker deaths a task may witness before it counts as failed "
+                   "(local cluster only).")
+@click.option("--json", "as_json", is_flag=True, help="Print one JSON object on stdout.")
+def batch_cmd(manifest: Path, outdir: Path, scheduler: str | None, workers: int | None,
+              rerun_failed: bool, allowed_failures: int, as_json: bool) -> None:
+    """Fit every input x channel x settings of MANIFEST (TOML or JSON); resumable.
+
+    Each verified fit goes to its own JSON fit file in OUTDIR; finished results
+    are skipped when the command is run again. Exit code 1 when some task found
+    no verified fit or failed (see the summary), 130 on Ctrl-C.
+    """
+    from ratfit.batch.runner import BatchInterrupted, run
+
+    if scheduler is not None and workers is not None:
+        raise click.UsageError("--workers applies to the local cluster; not with --scheduler")
+    try:
+        summary = run(
+            manifest, outdir=outdir, scheduler=scheduler, workers=workers,
+            rerun_failed=rerun_failed, allowed_failures=allowed_failures,
+            progress=not as_json and sys.stderr.isatty(),
+        )
+    except BatchInterrupted as exc:
+        s = exc.summary
+        done = sum(r["status"] != "pending" for r in s.rows)
+        click.echo(
+            f"interrupted: {done} of {len(s.rows)} results written to {s.outdir}; "
+            "run the same command again to resume", err=True,
+        )
+        sys.exit(EXIT_INTERRUPTED)
+    counts = summary.counts
+    if as_json:
+        _write_json({
+            "outdir": str(summary.outdir), "summary_csv": str(summary.csv),
+            "summary_parquet": str(summary.parquet), "tasks": len(summary.rows),
+            "fitted": summary.fitted, "skipped": summary.skipped,
+            "ok": counts["ok"], "no_fit": counts["no-fit"], "failed": counts["failed"],
+            "rows": summary.rows,
+        })
+    else:
+        _print_batch(summary)
+    if not summary.ok:
+        sys.exit(EXIT_NO_FIT)
+
+
+def _print_batch(summary) -> None:
+    from rich.console import Console
+    from rich.markup import escape
+    from rich.table import Table
+
+    con = Console(width=None if sys.stdout.isatty() else 120)
+    counts = summary.counts
+    table = Table(title=f"ratfit batch: {len(summary.rows)} task(s)")
+    for col in ("ok", "no fit", "failed", "run now", "resumed"):
+        table.add_column(col, justify="right")
+    table.add_row(str(counts["ok"]), str(counts["no-fit"]), str(counts["failed"]),
+                  str(summary.fitted), str(summary.skipped))
+    con.print(table)
+    for r in summary.rows:
+        if r["status"] == "failed":
+            what = f"{r['input']} {r['channel']} {r['settings_id']}: {r['message']}"
+            con.print(f"[bold red]failed[/] {escape(what)}", highlight=False)
+    con.print(f"wrote {summary.csv} and {summary.parquet}", highlight=False)

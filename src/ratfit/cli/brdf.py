@@ -1,0 +1,215 @@
+"""`ratfit brdf ...`: fit measured BRDFs and evaluate BRDF fits on directions."""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+from typing import Any
+
+import click
+import numpy as np
+
+from ratfit.cli.main import EXIT_NO_FIT, _fit_json, _print_report, _progress, _write_json, main
+
+
+@main.group("brdf")
+def brdf_group() -> None:
+    """Measured BRDFs: MERL, ALTA, Cornell/pbrt, ASTM and EXR files."""
+
+
+def _split_channels(values: tuple[str, ...]) -> list[str]:
+    return [c.strip() for v in values for c in v.split(",") if c.strip()]
+
+
+@brdf_group.command("fit")
+@click.argument("input_path", metavar="INPUT", type=click.Path(dir_okay=False, path_type=Path))
+@click.option("-o", "--output", type=click.Path(dir_okay=False, path_type=Path),
+              help="Fit file (JSON); written only when every channel is verified.")
+@click.option("--format", "fmt", type=click.Choice(["merl", "alta", "cornell", "astm", "exr"]),
+              help="Input format (default: from the file).")
+@click.option("--param", "param", default=None,
+              help="Parametrization to fit in (ALTA names, e.g. RUSIN_TH_TD_PD, COS_TH_TD_PD, "
+                   "STARK_2D); default: the file's own.")
+@click.option("--dt", type=float, help="Relative segment width: [(1-dt) y, (1+dt) y].")
+@click.option("--abs-width", type=float,
+              help="Absolute half-width (floor); with --dt each segment takes the larger.")
+@click.option("--floor-rel", type=float,
+              help="Absolute half-width per channel as a fraction of the channel's maximum.")
+@click.option("--cosine", is_flag=True, help="Fit BRDF x cos(theta_l); evaluation undoes it.")
+@click.option("--clamp", type=float, help="Raise values below this to it before fitting.")
+@click.option("--positive-q", is_flag=True,
+              help="Constrain the denominator to be positive on a grid of the valid "
+                   "configurations inside the QP (sparse or gappy measurements).")
+@click.option("--channels", "channels", multiple=True,
+              help="Channels to fit, by name or 0-based index (repeat or comma-separate).")
+@click.option("--color", type=click.Choice(["rgb", "xyz", "spectral"]), default="rgb",
+              show_default=True, help="Spectral (Cornell) data: CIE 1931 -> linear sRGB, XYZ, "
+                                      "or the bands as they are.")
+@click.option("--max-points", type=int, help="Fit a random subset of this many samples.")
+@click.option("--basis", type=click.Choice(["legendre", "chebyshev", "monomial"]),
+              default="legendre", show_default=True)
+@click.option("--index-set", type=click.Choice(["total", "tensor"]), default="total",
+              show_default=True)
+@click.option("--n", "n", type=int, help="Numerator coefficients (fixes the split).")
+@click.option("--m", "m", type=int, help="Denominator coefficients (fixes the split).")
+@click.option("--total", type=int, help="Try every split of this total.")
+@click.option("--min-total", type=int, default=2, show_default=True)
+@click.option("--max-total", type=int, default=None, help="Default 100.")
+@click.option("--solver", default="quadprog", show_default=True)
+@click.option("--jobs", type=int, default=None, help="Threads for independent QPs.")
+@click.option("--json", "as_json", is_flag=True, help="Print one JSON object on stdout.")
+def brdf_fit(input_path: Path, output: Path | None, fmt: str | None, param: str | None,
+             dt: float | None, abs_width: float | None, floor_rel: float | None, cosine: bool,
+             clamp: float | None, positive_q: bool, channels: tuple[str, ...], color: str,
+             max_points: int | None, basis: str, index_set: str, n: int | None, m: int | None,
+             total: int | None, min_total: int, max_total: int | None, solver: str,
+             jobs: int | None, as_json: bool) -> None:
+    """Fit each channel of a measured BRDF with a verified rational function."""
+    from ratfit.brdf.fitter import brdf_metrics, cos_theta_l, fit_brdf, save_brdf_fit
+    from ratfit.brdf.io import brdf_dataset
+    from ratfit.brdf.parametrizations import get_parametrization
+    from ratfit.io.fitfile import file_sha256
+
+    if (n is None) != (m is None):
+        raise click.UsageError("give both --n and --m, or neither")
+    if max_points is not None and max_points < 2:
+        raise click.UsageError("--max-points must be >= 2")
+    if param is not None:
+        param = get_parametrization(param).name
+    ds = brdf_dataset(input_path, param, fmt=fmt, channels=_split_channels(channels) or None,
+                      color=color, max_points=max_points)
+    cb, stop = _progress(not as_json)
+    try:
+        fitter, seg, meta = fit_brdf(
+            ds, dt=dt, abs_width=abs_width, floor_rel=floor_rel, cosine=cosine, clamp=clamp,
+            positive_q=positive_q,
+            basis=basis, index_set=index_set, n=n, m=m, total=total, min_total=min_total,
+            max_total=max_total, solver=solver, jobs=jobs, callback=cb,
+        )
+    finally:
+        stop()
+    results = fitter.results_
+    ok = all(r.success for r in results)
+    metrics: dict[str, Any] | None = None
+    if ok:
+        pred = np.stack([r.rational(seg.x) for r in results], axis=1)
+        cl = None
+        if meta["parametrization"] in ("UNKNOWN",):
+            cl = None
+        else:
+            try:
+                cl = cos_theta_l(seg.x, meta["parametrization"])
+            except Exception:  # parametrizations without theta_l: no cos-weighted metric
+                cl = None
+        metrics = brdf_metrics(pred, seg.center, cl, seg.names)
+    if output is not None and ok:
+        save_brdf_fit(output, results, meta, provenance={
+            "input": str(input_path), "input_sha256": file_sha256(input_path),
+            "n_points": seg.n_points, "solver": solver,
+            "segments": {"dt": dt, "abs_width": abs_width, "floor_rel": floor_rel},
+        })
+    if as_json:
+        doc = _fit_json(results, output if ok else None)
+        doc["parametrization"] = meta["parametrization"]
+        doc["n_points"] = seg.n_points
+        doc["metrics"] = metrics
+        _write_json(doc)
+    else:
+        _print_report(results, output if ok and output else None)
+        click.echo(f"parametrization {meta['parametrization']}, {seg.n_points} samples")
+        for name, mm in (metrics or {}).items():
+            click.echo(f"{name}: " + ", ".join(f"{k} {v:.4g}" for k, v in mm.items()))
+        if output is not None and not ok:
+            click.echo(f"no fit file written: not every channel is verified ({output})", err=True)
+    if not ok:
+        sys.exit(EXIT_NO_FIT)
+
+
+@brdf_group.command("eval")
+@click.argument("fit_path", metavar="FIT.json", type=click.Path(dir_okay=False, path_type=Path))
+@click.option("--dirs", "dirs", type=click.Path(dir_okay=False, path_type=Path),
+              help="Directions: CSV/text rows 'lx ly lz vx vy vz' (a header line is allowed).")
+@click.option("--coords", "coords", type=click.Path(dir_okay=False, path_type=Path),
+              help="Rows of coordinates in the fit's parametrization.")
+@click.option("--data", "data", type=click.Path(dir_okay=False, path_type=Path),
+              help="A BRDF file: print the metrics of the fit against it (JSON).")
+@click.option("-o", "--output", type=click.Path(dir_okay=False, path_type=Path),
+              help="Write values to .csv or .npy (default: CSV on stdout).")
+def brdf_eval(fit_path: Path, dirs: Path | None, coords: Path | None, data: Path | None,
+              output: Path | None) -> None:
+    """BRDF values of a fit at directions (or coordinates), or its errors on a data file."""
+    from ratfit._atomic import atomic_open
+    from ratfit.brdf.fitter import brdf_metrics, cos_theta_l, load_brdf_fit
+    from ratfit.brdf.io import brdf_dataset
+    from ratfit.errors import InputError
+
+    if sum(v is not None for v in (dirs, coords, data)) != 1:
+        raise click.UsageError("give exactly one of --dirs, --coords, --data")
+    fit = load_brdf_fit(fit_path)
+    if data is not None:
+        ds = brdf_dataset(data, fit.parametrization)
+        assert ds.y is not None
+        if ds.n_channels != fit.n_channels:
+            raise InputError(f"{data} has {ds.n_channels} channel(s), the fit {fit.n_channels}")
+        pred = fit.eval_coords(ds.x)
+        try:
+            cl = cos_theta_l(ds.x, fit.parametrization)
+        except InputError:
+            cl = None
+        _write_json({"fit": str(fit_path), "data": str(data), "n_points": ds.n_points,
+                     "parametrization": fit.parametrization,
+                     "metrics": brdf_metrics(pred, ds.y, cl, fit.channel_names)})
+        return
+    path = dirs if dirs is not None else coords
+    assert path is not None
+    from ratfit.brdf.parametrizations import get_parametrization
+
+    width = 6 if dirs is not None else get_parametrization(fit.parametrization).dim
+    table = _read_table(path, width)
+    if dirs is not None:
+        vals = fit.eval_dirs(table[:, :3], table[:, 3:])
+        cols = ["lx", "ly", "lz", "vx", "vy", "vz"]
+    else:
+        vals = fit.eval_coords(table)
+        cols = list(get_parametrization(fit.parametrization).coords)
+    names = list(fit.channel_names)
+    if output is not None and output.suffix.lower() == ".npy":
+        with atomic_open(output, "wb") as fh:
+            np.save(fh, vals)
+        return
+    lines = [",".join(cols + names)]
+    lines += [",".join(repr(float(v)) for v in row) for row in np.hstack([table, vals])]
+    if output is None:
+        click.echo("\n".join(lines))
+    else:
+        with atomic_open(output, "w") as fh:
+            fh.write("\n".join(lines) + "\n")
+
+
+def _read_table(path: Path, width: int) -> np.ndarray:
+    """Numbers from a CSV/blank-separated text file, `width` per row; one header line allowed."""
+    from ratfit.errors import FileFormatError
+
+    if not path.is_file():
+        raise FileFormatError(f"{path}: no such file")
+    rows = []
+    for n, raw in enumerate(path.read_text(errors="replace").splitlines(), start=1):
+        s = raw.strip()
+        if not s or s.startswith("#"):
+            continue
+        toks = s.replace(",", " ").split()
+        try:
+            vals = [float(t) for t in toks]
+        except ValueError:
+            if not rows:
+                continue  # a header line
+            raise FileFormatError(f"{path} line {n}: non-numeric value in {s[:60]!r}") from None
+        if len(vals) != width:
+            raise FileFormatError(f"{path} line {n}: expected {width} numbers, got {len(vals)}")
+        rows.append(vals)
+    if not rows:
+        raise FileFormatError(f"{path}: no rows of numbers")
+    arr = np.asarray(rows)
+    if not np.all(np.isfinite(arr)):
+        raise FileFormatError(f"{path}: non-finite values")
+    return arr

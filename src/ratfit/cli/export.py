@@ -1,0 +1,224 @@
+"""`ratfit export`, `ratfit plot`, `ratfit report` and `ratfit brdf compare`."""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+import click
+
+from ratfit.cli.main import _write_json, main
+from ratfit.errors import InputError
+
+_FILE = click.Path(dir_okay=False, path_type=Path)
+
+
+@main.command("export")
+@click.argument("fit_path", metavar="FIT.json", type=_FILE)
+@click.option("--lang", type=click.Choice(["c", "glsl", "python"]), required=True)
+@click.option("-o", "--output", type=_FILE, required=True, help="Source file to write.")
+@click.option("--form", type=click.Choice(["auto", "horner", "clenshaw", "recurrence"]),
+              default="auto",
+              show_default=True,
+              help="auto: Horner on the monomial form when it keeps full accuracy, else "
+                   "Clenshaw in the fit's orthogonal basis.")
+@click.option("--prefix", default="ratfit", show_default=True, help="Prefix of every name.")
+def export_cmd(fit_path: Path, lang: str, output: Path, form: str, prefix: str) -> None:
+    """Write C, GLSL or Python source evaluating a saved (verified) fit."""
+    from ratfit.export.code import export_fit
+
+    res = export_fit(fit_path, lang, output, form=form, prefix=prefix)
+    for line in res.describe():
+        click.echo(line)
+    if res.parametrization:
+        click.echo(f"directions -> {res.parametrization}: {prefix}_coords, {prefix}_brdf")
+    click.echo(f"wrote {output}")
+
+
+@main.command("plot")
+@click.argument("fit_path", metavar="FIT.json", type=_FILE)
+@click.option("--data", "data_path", type=_FILE, help="Data file to show with the fit.")
+@click.option("--kind", type=click.Choice(["slice", "polar", "sphere", "error"]),
+              default="slice", show_default=True)
+@click.option("-o", "--output", type=_FILE, required=True, help="PNG file to write.")
+@click.option("--channel", type=int, default=0, show_default=True)
+@click.option("--dim", type=int, default=0, show_default=True, help="Slice coordinate.")
+@click.option("--model", "models", multiple=True,
+              help="Analytic model(s) fitted to the data and drawn beside (BRDF fits), "
+                   "e.g. lambert+ggx. Default for sphere: lambert+ggx.")
+@click.option("--size", type=int, default=128, show_default=True, help="Sphere image size.")
+def plot_cmd(fit_path: Path, data_path: Path | None, kind: str, output: Path, channel: int,
+             dim: int, models: tuple[str, ...], size: int) -> None:
+    """Pictures of a fit: slice (fit, data, signed error), error, polar or sphere."""
+    from ratfit.brdf.analytic_models import Model
+    from ratfit.viz import pictures as pic
+    from ratfit.viz.report import (
+        cos_factor,
+        load_data_for,
+        load_fit_any,
+        model_fit_for,
+        segments_of,
+    )
+
+    if output.suffix.lower() != ".png":
+        raise InputError(f"{output}: plots are PNG files (use a .png name)")
+    for spec in models:
+        Model(spec)  # check before any work
+    fit = load_fit_any(fit_path)
+    if not 0 <= channel < len(fit.saved.channels):
+        raise InputError(f"channel {channel} out of range: the fit has "
+                         f"{len(fit.saved.channels)} channel(s)")
+    ds = load_data_for(fit, data_path) if data_path is not None else None
+    if kind in ("slice", "error"):
+        if kind == "error" and ds is None:
+            raise click.UsageError("--kind error needs --data")
+        seg = segments_of(fit, ds) if ds is not None else None
+        kw = {"lo": None if seg is None else seg.lo, "hi": None if seg is None else seg.hi,
+              "dim": dim, "channel": channel}
+        if kind == "slice":
+            pic.plot_slice(fit.saved, output, x=None if ds is None else ds.x,
+                           y=None if ds is None else ds.y, **kw)
+        else:
+            assert ds is not None
+            pic.plot_error(fit.saved, output, ds.x, ds.y, **kw)
+        click.echo(f"wrote {output}")
+        return
+    if not fit.is_brdf:
+        raise InputError(f"{fit_path}: --kind {kind} needs a BRDF fit (a fit file that records "
+                         "its parametrization, from `ratfit brdf fit`)")
+    assert fit.param is not None
+    cf = ds is not None and cos_factor(ds)
+    funcs = {"rational": pic.fit_brdf_function(fit.brdf, cos_factor=cf)}
+    if ds is not None:
+        for spec in models or (("lambert+ggx",) if kind == "sphere" else ()):
+            mf = model_fit_for(fit.param, ds, spec)
+            funcs[mf.name] = mf.eval_dirs
+    if kind == "polar":
+        pic.plot_polar(funcs, output, channel=channel)
+    else:
+        imgs = {}
+        if ds is not None:
+            imgs["data"] = pic.render_sphere(
+                pic.DataBRDF(ds.x, ds.y, fit.param, cos_factor=cf,
+                             fold_phi_d=bool(ds.meta.get("fold_phi_d"))), size=size)
+        for name, f in funcs.items():
+            imgs[name] = pic.render_sphere(f, size=size)
+        pic.plot_spheres(imgs, output)
+    click.echo(f"wrote {output}")
+
+
+@main.command("report")
+@click.argument("fit_path", metavar="FIT.json", type=_FILE)
+@click.option("--data", "data_path", type=_FILE, help="Data file the fit is compared with.")
+@click.option("-o", "--outdir", type=click.Path(file_okay=False, path_type=Path), required=True,
+              help="Folder for index.html and its pictures.")
+@click.option("--model", "models", multiple=True,
+              help="Analytic model(s) to compare with (BRDF fits; default lambert+ggx).")
+def report_cmd(fit_path: Path, data_path: Path | None, outdir: Path,
+               models: tuple[str, ...]) -> None:
+    """One static HTML page with the metrics table and the pictures (opens offline)."""
+    from ratfit.brdf.analytic_models import Model
+    from ratfit.viz.report import write_report
+
+    for spec in models:
+        Model(spec)
+    res = write_report(fit_path, data_path, outdir, models=models or ("lambert+ggx",))
+    if res.albedo is not None and res.albedo["flagged"]:
+        click.echo(f"warning: the fit reflects more than it receives (max albedo "
+                   f"{res.albedo['max_albedo']:.3g})", err=True)
+    click.echo(f"wrote {res.index} ({len(res.pictures)} pictures)")
+
+
+# ---------------------------------------------------------------------------- brdf compare
+def _compare(data_path: Path, fits: tuple[str, ...], models: tuple[str, ...], param: str | None,
+             starts: int, as_json: bool) -> None:
+    from rich.console import Console
+    from rich.table import Table
+
+    from ratfit.brdf.analytic_models import Model
+    from ratfit.viz.report import (
+        METRIC_COLUMNS,
+        LoadedFit,
+        compare_table,
+        load_data_for,
+        load_fit_any,
+        model_fit_for,
+        model_metrics,
+        rational_metrics,
+    )
+
+    for spec in models:
+        Model(spec)
+    if not fits and not models:
+        raise click.UsageError("give at least one FIT file or --model")
+    rows: list[dict] = []
+    first: LoadedFit | None = None
+    model_files = []
+    for f in fits:
+        if _is_model_file(Path(f)):
+            model_files.append(Path(f))
+            continue
+        lf = load_fit_any(f)
+        if not lf.is_brdf:
+            raise InputError(f"{f}: not a BRDF fit (it records no parametrization)")
+        ds = load_data_for(lf, data_path)
+        for r in rational_metrics(lf, ds):
+            r["name"] = Path(f).name
+            rows.append(r)
+        first = first or lf
+    from ratfit.brdf.analytic_models import load_model_fit
+    from ratfit.brdf.io import brdf_dataset
+
+    ds = brdf_dataset(data_path, first.param if first is not None else param)
+    pname = str(ds.meta.get("param_in"))
+    for mp in model_files:
+        mf = load_model_fit(mp)
+        for r in model_metrics(mf, pname, ds):
+            r["name"] = f"{mp.name} ({mf.name})"
+            rows.append(r)
+    for spec in models:
+        mf = model_fit_for(pname, ds, spec, starts=starts)
+        rows += model_metrics(mf, pname, ds)
+    if as_json:
+        _write_json({"data": str(data_path), "n_points": ds.n_points, "rows": rows})
+        return
+    con = Console(width=None if sys.stdout.isatty() else 160)
+    table = Table(title=f"{data_path} ({ds.n_points} samples)")
+    for col in ("fit", "channel", "coefs", *METRIC_COLUMNS, "parameters"):
+        table.add_column(col, justify="left" if col in ("fit", "parameters") else "right")
+    for r in compare_table(rows):
+        table.add_row(*r)
+    con.print(table)
+
+
+def _is_model_file(p: Path) -> bool:
+    if p.suffix.lower() != ".json" or not p.is_file():
+        return False
+    try:
+        head = p.read_text(errors="replace")[:4000]
+    except OSError:
+        return False
+    return '"ratfit.model"' in head
+
+
+def _register_compare(group: click.Group) -> None:
+    @group.command("compare")
+    @click.argument("data_path", metavar="DATA", type=_FILE)
+    @click.argument("fits", metavar="FIT...", nargs=-1)
+    @click.option("--model", "models", multiple=True,
+                  help="Analytic model fitted to DATA, e.g. lambert+ggx, lambert+lafortune*2 "
+                       "(repeatable). Lobes: lambert, blinn, ward, beckmann, ggx, lafortune.")
+    @click.option("--param", default=None,
+                  help="Parametrization for --model-only runs (default: the file's).")
+    @click.option("--starts", type=int, default=8, show_default=True,
+                  help="Random starts per analytic fit.")
+    @click.option("--json", "as_json", is_flag=True, help="Print one JSON object on stdout.")
+    def compare_cmd(data_path: Path, fits: tuple[str, ...], models: tuple[str, ...],
+                    param: str | None, starts: int, as_json: bool) -> None:
+        """Metrics of rational fits (FIT files) and analytic models side by side on DATA."""
+        _compare(data_path, fits, models, param, starts, as_json)
+
+
+from ratfit.cli.brdf import brdf_group  # noqa: E402  (its group; imported after ours is defined)
+
+_register_compare(brdf_group)

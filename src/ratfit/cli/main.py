@@ -1,0 +1,173 @@
+"""Command-line interface: parse, call the library, print or write. No fitting logic.
+
+Exit codes: 0 success, 1 a run that found no verified fit, 2 bad input or usage.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import sys
+import warnings
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+import click
+
+from ratfit.errors import RatfitError
+
+EXIT_NO_FIT = 1
+EXIT_BAD_INPUT = 2
+
+
+class _Main(click.Group):
+    """Maps library errors to one-line messages and exit codes, without tracebacks."""
+
+    def invoke(self, ctx: click.Context) -> Any:
+        try:
+            return super().invoke(ctx)
+        except (click.exceptions.Exit, click.ClickException, click.Abort):
+            raise
+        except BrokenPipeError:
+            # The reader went away (``ratfit eval ... | head``): not an input error.
+            # Point stdout at devnull so the interpreter's final flush stays quiet.
+            devnull = os.open(os.devnull, os.O_WRONLY)
+            os.dup2(devnull, sys.stdout.fileno())
+            ctx.exit(141)
+        except RatfitError as exc:
+            click.echo(f"error: {exc}", err=True)
+            ctx.exit(EXIT_BAD_INPUT)
+        except OSError as exc:
+            name = exc.filename if exc.filename else ""
+            click.echo(f"error: {name}: {exc.strerror or exc}", err=True)
+            ctx.exit(EXIT_BAD_INPUT)
+        except MemoryError:
+            click.echo("error: out of memory (try fewer points or a smaller max total)", err=True)
+            ctx.exit(EXIT_BAD_INPUT)
+        except Exception as exc:  # an internal bug: say so, keep the trace behind a variable
+            if os.environ.get("RATFIT_DEBUG"):
+                raise
+            click.echo(
+                f"internal error: {type(exc).__name__}: {exc} (set RATFIT_DEBUG=1 for a trace)",
+                err=True,
+            )
+            ctx.exit(3)
+
+
+@click.group(cls=_Main, context_settings={"help_option_names": ["-h", "--help"]})
+@click.version_option(package_name="ratfit")
+def main() -> None:
+    """Verified rational fits of vertical segments (interval data)."""
+    warnings.simplefilter("default")
+
+
+# ---------------------------------------------------------------------------- helpers
+def _progress(enabled: bool) -> tuple[Callable | None, Callable[[], None]]:
+    """A rich status line on stderr while a search runs (terminals only)."""
+    if not enabled or not sys.stderr.isatty():
+        return None, lambda: None
+    from rich.console import Console
+
+    status = Console(stderr=True).status("searching ...")
+    status.start()
+    seen = {"qps": 0}
+
+    def cb(att) -> None:
+        seen["qps"] += 1
+        status.update(
+            f"tested {seen['qps']} splits; last (n={att.n}, m={att.m}): {att.status}"
+        )
+
+    return cb, status.stop
+
+
+def _write_json(obj: Any) -> None:
+    click.echo(json.dumps(obj, indent=1, allow_nan=False))
+
+
+def _print_report(results, out: Path | None) -> None:
+    from rich.console import Console
+    from rich.table import Table
+
+    table = Table(title="ratfit fit")
+    for col in ("channel", "n", "m", "total", "verified", "max viol.", "Linf", "RMSE",
+                "max rel.", "delta", "QPs", "s"):
+        table.add_column(col, justify="right")
+    for r in results:
+        s = r.summary()
+        table.add_row(
+            s["channel"], str(s["n"]), str(s["m"]), str(s["total"]),
+            "yes" if s["verified"] else "NO", _fmt(s["max_violation"]), _fmt(s["linf"]),
+            _fmt(s["l2"]), _fmt(s["max_rel_error"]), _fmt(s["delta"]), str(s["qp_solves"]),
+            f"{s['seconds']:.3f}",
+        )
+    con = Console(width=None if sys.stdout.isatty() else 120)
+    con.print(table)
+    for r in results:
+        if not r.success:
+            con.print(f"[bold red]{r.channel}[/]: {r.message}")
+        for d in r.disagreements:
+            con.print(f"[yellow]{r.channel} solver disagreement[/] {d}")
+    if out is not None:
+        con.print(f"wrote {out}")
+
+
+def _fmt(v: float | None) -> str:
+    return "-" if v is None else f"{v:.3g}"
+
+
+def _monomials(results, seg) -> list[dict | None]:
+    from ratfit.core.monomial import to_monomial
+    from ratfit.errors import AccuracyWarning
+
+    out = []
+    for r in results:
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always", AccuracyWarning)
+            mf = to_monomial(r.rational, seg.x)
+        for w in caught:
+            click.echo(f"warning: channel {r.channel}: {w.message}", err=True)
+        out.append(mf.to_dict())
+    return out
+
+
+def _fit_json(results, output: Path | None) -> dict[str, Any]:
+    per = [r.summary() for r in results]
+    if len(per) == 1:
+        doc = dict(per[0])
+    else:
+        doc = {
+            "n": [p["n"] for p in per],
+            "m": [p["m"] for p in per],
+            "total": sum(p["total"] for p in per),
+            "basis": per[0]["basis"],
+            "verified": all(p["verified"] for p in per),
+            "success": all(p["success"] for p in per),
+            "max_violation": _worst(per, "max_violation"),
+            "linf": _worst(per, "linf"),
+            "l2": _worst(per, "l2"),
+            "max_rel_error": _worst(per, "max_rel_error"),
+            "delta": min((p["delta"] for p in per if p["delta"] is not None), default=None),
+            "sigma_min": min((p["sigma_min"] for p in per if p["sigma_min"] is not None),
+                             default=None),
+            "sigma_max": max((p["sigma_max"] for p in per if p["sigma_max"] is not None),
+                             default=None),
+            "seconds": sum(p["seconds"] for p in per),
+        }
+        # one certificate per channel (null where that channel has a fit)
+        doc["infeasible_proof"] = [p.get("infeasible_proof") for p in per]
+    doc["channels"] = per
+    doc["output"] = str(output) if output else None
+    return doc
+
+
+def _worst(vals: list[dict], key: str) -> float | None:
+    xs = [p[key] for p in vals]
+    return None if any(v is None for v in xs) else max(xs)
+
+
+# ---------------------------------------------------------------------------- eval
+@main.group("demo")
+def demo_group() -> None:
+    """Built-in demonstrations on built-in data."""

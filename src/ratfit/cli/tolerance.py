@@ -1,0 +1,93 @@
+"""`ratfit tolerance`: the smallest segment width a fixed size (n, m) still fits."""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+from typing import Any
+
+import click
+
+from ratfit.cli.main import EXIT_NO_FIT, _fit_json, _fmt, _write_json, main
+
+
+@main.command("tolerance")
+@click.argument("input_path", metavar="INPUT", type=click.Path(dir_okay=False, path_type=Path))
+@click.option("--n", "n", type=click.IntRange(min=1), required=True,
+              help="Numerator coefficients.")
+@click.option("--m", "m", type=click.IntRange(min=1), required=True,
+              help="Denominator coefficients.")
+@click.option("--absolute", is_flag=True,
+              help="Absolute width [y-w, y+w] (as --abs-width) instead of relative "
+                   "[(1-w) y, (1+w) y] (as --dt).")
+@click.option("--rtol", type=click.FloatRange(min=0, max=1, min_open=True, max_open=True),
+              default=1e-3, show_default=True,
+              help="Stop when the feasible width is within this ratio of an infeasible one.")
+@click.option("--format", "fmt", type=click.Choice(["alta", "csv", "npz", "nist"]),
+              help="Input format (default: from the file).")
+@click.option("--basis", type=click.Choice(["legendre", "chebyshev", "monomial"]),
+              default="legendre", show_default=True)
+@click.option("--solver", default="quadprog", show_default=True)
+@click.option("--channel", "channels", multiple=True, type=int,
+              help="Only these channels (0-based; repeatable).")
+@click.option("--json", "as_json", is_flag=True, help="Print one JSON object on stdout.")
+def tolerance_cmd(input_path: Path, n: int, m: int, absolute: bool, rtol: float,
+                  fmt: str | None, basis: str, solver: str, channels: tuple[int, ...],
+                  as_json: bool) -> None:
+    """Smallest width at which a rational of size (n, m) fits INPUT's y values.
+
+    Intervals in the file are ignored: segments are built from y with the
+    width being searched, by bisection with feasibility QPs. The result is a
+    verified fit at WIDTH and, just below it, a checked certificate that no
+    rational of this size fits (a minimax-like error bound).
+    """
+    from ratfit.errors import InputError
+    from ratfit.fitting.tolerance import best_width
+    from ratfit.io.data import read_data
+
+    data = read_data(input_path, fmt=fmt)
+    if data.y is None:
+        raise InputError(f"{input_path} has only lo/hi bounds, no y values to fit")
+    k = data.y.shape[1]
+    pick = list(channels) or list(range(k))
+    for c in pick:
+        if not 0 <= c < k:
+            raise InputError(f"channel {c} out of range: {input_path} has {k} channel(s)")
+    names = data.output_names or tuple(f"y{j}" for j in range(k))
+    outs = []
+    for c in pick:
+        try:
+            outs.append(best_width(data.x, data.y[:, c], n, m, absolute=absolute, rtol=rtol,
+                                   basis=basis, solver=solver, name=names[c]))
+        except InputError as exc:
+            raise InputError(f"{input_path}: channel {names[c]}: {exc}") from None
+    found = [o for o in outs if o.fit is not None]
+    doc: dict[str, Any] = _fit_json([o.fit for o in found], None) if found else {}
+    per = [o.summary() for o in outs]
+    if len(outs) == 1:
+        doc.update(per[0])
+    else:
+        doc["width"] = [p["width"] for p in per]
+        doc["width_kind"] = per[0]["width_kind"]
+        for entry, p in zip(doc.get("channels", []), [p for o, p in zip(outs, per, strict=True)
+                                                         if o.fit is not None], strict=True):
+            entry.update(p)
+        doc["widths"] = per
+    ok = all(o.success for o in outs)
+    doc["success"] = ok
+    if as_json:
+        _write_json(doc)
+    else:
+        kind = "absolute" if absolute else "relative"
+        for name, o in zip((names[c] for c in pick), outs, strict=True):
+            if o.fit is None:
+                click.echo(f"{name}: no verified fit of size n={n}, m={m} at any width tried")
+                continue
+            v = o.fit.verification
+            proof = ("certified infeasible" if o.lower_certified else "NOT certified")
+            click.echo(
+                f"{name}: best {kind} width {o.width:.6g} for n={n}, m={m} (verified; max rel. "
+                f"error {_fmt(v.max_rel_error if v else None)}); {o.lower:.6g} is {proof}"
+            )
+    if not ok:
+        sys.exit(EXIT_NO_FIT)

@@ -1,0 +1,240 @@
+"""Polynomial bases on the scaled domain [-1, 1]^d, 1-D and n-D.
+
+Every basis operation is delegated to ``numpy.polynomial``: a 1-D
+:class:`Family` only plugs in numpy's module functions (vander, val, der,
+roots, conversion to power series), as ``numpy.polynomial``'s own classes do.
+:class:`PolynomialSpace` adds what numpy lacks: graded multi-index sets of any
+dimension and the affine map from the data ``domain`` to the ``window``.
+
+Coefficient counts, not degrees: ``n`` basis functions means the first ``n``
+multi-indices of the graded order (degree ``n - 1`` in 1-D).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+from functools import cached_property
+from itertools import product
+
+import numpy as np
+from numpy.polynomial import chebyshev as _cheb
+from numpy.polynomial import legendre as _leg
+from numpy.polynomial import polynomial as _poly
+from numpy.typing import ArrayLike, NDArray
+
+from ratfit.errors import InputError
+
+__all__ = [
+    "FAMILIES",
+    "INDEX_SETS",
+    "Family",
+    "PolynomialSpace",
+    "get_family",
+    "multi_indices",
+]
+
+Array = NDArray[np.float64]
+
+
+@dataclass(frozen=True)
+class Family:
+    """A 1-D polynomial family on the window [-1, 1], by numpy module functions."""
+
+    name: str
+    vander: Callable[[ArrayLike, int], Array]
+    val: Callable[..., Array]
+    der: Callable[..., Array]
+    roots: Callable[[ArrayLike], NDArray]
+    to_power: Callable[[ArrayLike], Array]
+    from_power: Callable[[ArrayLike], Array]
+
+
+def _identity(c: ArrayLike) -> Array:
+    return np.array(c, dtype=float)
+
+
+FAMILIES: dict[str, Family] = {
+    "legendre": Family(
+        "legendre", _leg.legvander, _leg.legval, _leg.legder, _leg.legroots,
+        _leg.leg2poly, _leg.poly2leg,
+    ),
+    "chebyshev": Family(
+        "chebyshev", _cheb.chebvander, _cheb.chebval, _cheb.chebder, _cheb.chebroots,
+        _cheb.cheb2poly, _cheb.poly2cheb,
+    ),
+    # The seed's "centered monomials": powers of the scaled variable t in [-1, 1].
+    "monomial": Family(
+        "monomial", _poly.polyvander, _poly.polyval, _poly.polyder, _poly.polyroots,
+        _identity, _identity,
+    ),
+}
+
+INDEX_SETS = ("total", "tensor")
+
+
+def get_family(name: str) -> Family:
+    try:
+        return FAMILIES[name]
+    except KeyError:
+        raise InputError(
+            f"unknown basis {name!r}; choose one of {', '.join(FAMILIES)}"
+        ) from None
+
+
+def multi_indices(dim: int, count: int, index_set: str = "total") -> NDArray[np.int64]:
+    """The first ``count`` multi-indices of ``dim`` variables in graded order.
+
+    ``total``: by total degree |a|_1, then by descending power of x0 inside a
+    shell, e.g. (1,0) before (0,1). ``tensor``: by max degree |a|_inf, then by
+    total degree, then the same tie order, e.g. (1,0), (0,1), (1,1). Any prefix
+    of either order is a downward-closed set only at complete shells; neither the
+    QP nor the monomial conversion needs that (degrees never grow under a change
+    of basis).
+    """
+    if index_set not in INDEX_SETS:
+        raise InputError(f"unknown index set {index_set!r}; choose one of {', '.join(INDEX_SETS)}")
+    if dim < 1:
+        raise InputError(f"dimension must be >= 1, got {dim}")
+    if count < 0:
+        raise InputError(f"number of coefficients must be >= 0, got {count}")
+    out: list[tuple[int, ...]] = []
+    shell = 0
+    while len(out) < count:
+        out.extend(_shell(dim, shell, index_set))
+        shell += 1
+    return np.array(out[:count], dtype=np.int64).reshape(count, dim)
+
+
+def _shell(dim: int, s: int, index_set: str) -> list[tuple[int, ...]]:
+    if dim == 1:
+        return [(s,)]
+    if index_set == "total":
+        cand = [a for a in product(range(s + 1), repeat=dim) if sum(a) == s]
+    else:
+        cand = [a for a in product(range(s + 1), repeat=dim) if max(a) == s]
+    # lower total degree first (tensor shells), then x0's power descending
+    return sorted(cand, key=lambda a: (sum(a), tuple(-v for v in a)))
+
+
+class PolynomialSpace:
+    """A polynomial family on ``domain`` (d intervals), mapped affinely to [-1,1]^d.
+
+    Parameters
+    ----------
+    family : "legendre", "chebyshev" or "monomial".
+    domain : (d, 2) array of [min, max] per input dimension.
+    index_set : "total" (graded by total degree) or "tensor" (by max degree).
+    """
+
+    def __init__(self, family: str, domain: ArrayLike, index_set: str = "total") -> None:
+        self.family = get_family(family)
+        dom = np.array(domain, dtype=float).reshape(-1, 2)
+        if not np.all(np.isfinite(dom)):
+            raise InputError(f"domain must be finite, got {dom.tolist()}")
+        if np.any(dom[:, 1] <= dom[:, 0]):
+            bad = int(np.flatnonzero(dom[:, 1] <= dom[:, 0])[0])
+            raise InputError(
+                f"domain of dimension {bad} is empty or reversed: {dom[bad].tolist()}"
+            )
+        if index_set not in INDEX_SETS:
+            raise InputError(
+                f"unknown index set {index_set!r}; choose one of {', '.join(INDEX_SETS)}"
+            )
+        self.domain = dom
+        self.domain.setflags(write=False)
+        self.index_set = index_set
+
+    # -- geometry -------------------------------------------------------------
+    @property
+    def dim(self) -> int:
+        return int(self.domain.shape[0])
+
+    @cached_property
+    def _scale(self) -> tuple[Array, Array]:
+        lo, hi = self.domain[:, 0], self.domain[:, 1]
+        return 2.0 / (hi - lo), -(hi + lo) / (hi - lo)
+
+    def to_window(self, x: ArrayLike) -> Array:
+        """Map points (N, d) in the domain to t in [-1, 1]^d."""
+        xa = np.asarray(x, dtype=float)
+        if xa.ndim == 1 and self.dim == 1:
+            xa = xa[:, None]
+        if xa.ndim != 2 or xa.shape[1] != self.dim:
+            raise InputError(
+                f"points must have shape (N, {self.dim}), got {np.shape(x)}"
+            )
+        a, b = self._scale
+        return xa * a + b
+
+    def from_window(self, t: ArrayLike) -> Array:
+        a, b = self._scale
+        return (np.asarray(t, dtype=float) - b) / a
+
+    # -- index sets and matrices ---------------------------------------------
+    def indices(self, count: int) -> NDArray[np.int64]:
+        return multi_indices(self.dim, count, self.index_set)
+
+    def design(self, x: ArrayLike, count: int, *, window: bool = False) -> Array:
+        """Matrix (N, count) of the first ``count`` basis functions at the points."""
+        t = np.asarray(x, dtype=float) if window else self.to_window(x)
+        if t.ndim == 1:
+            t = t[:, None]
+        idx = self.indices(count)
+        if count == 0:
+            return np.zeros((t.shape[0], 0))
+        deg = int(idx.max())
+        if self.dim == 1:
+            return self.family.vander(t[:, 0], deg)[:, idx[:, 0]]
+        vs = [self.family.vander(t[:, k], deg) for k in range(self.dim)]
+        out = vs[0][:, idx[:, 0]].copy()
+        for k in range(1, self.dim):
+            out *= vs[k][:, idx[:, k]]
+        return out
+
+    def evaluate(self, x: ArrayLike, coef: ArrayLike, *, window: bool = False) -> Array:
+        """Values of the polynomial with coefficients ``coef`` (graded order)."""
+        c = np.asarray(coef, dtype=float)
+        if self.dim == 1:
+            t = np.asarray(x, dtype=float) if window else self.to_window(x)
+            return self.family.val(np.ravel(t), c)
+        return self.design(x, c.size, window=window) @ c
+
+    def tensor_coef(self, coef: ArrayLike) -> Array:
+        """Dense d-way array C[a_1, ..., a_d] holding the graded coefficients."""
+        c = np.asarray(coef, dtype=float)
+        idx = self.indices(c.size)
+        shape = tuple(int(v) + 1 for v in idx.max(axis=0)) if c.size else (1,) * self.dim
+        out = np.zeros(shape)
+        out[tuple(idx.T)] = c
+        return out
+
+    # -- (de)serialisation ------------------------------------------------------
+    def to_dict(self) -> dict:
+        return {
+            "family": self.family.name,
+            "dim": self.dim,
+            "index_set": self.index_set,
+            "domain": self.domain.tolist(),
+        }
+
+    @classmethod
+    def from_dict(cls, d: dict) -> PolynomialSpace:
+        return cls(d["family"], d["domain"], d.get("index_set", "total"))
+
+    def __eq__(self, other: object) -> bool:
+        return (
+            isinstance(other, PolynomialSpace)
+            and self.family.name == other.family.name
+            and self.index_set == other.index_set
+            and np.array_equal(self.domain, other.domain)
+        )
+
+    def __hash__(self) -> int:
+        return hash((self.family.name, self.index_set, self.domain.tobytes()))
+
+    def __repr__(self) -> str:
+        return (
+            f"PolynomialSpace({self.family.name!r}, domain={self.domain.tolist()}, "
+            f"index_set={self.index_set!r})"
+        )

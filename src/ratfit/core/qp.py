@@ -1,0 +1,502 @@
+"""The quadratic program P(n, m) of the seed, solved with an active set.
+
+    min ||c||_2   s.t.   A c >= delta ||A_j||  row-wise,   c = (p_1..p_n, q_1..q_m)
+
+with rows  p(x_i) - lo_i q(x_i) >= .  and  hi_i q(x_i) - p(x_i) >= .  and
+delta = 1 / cond(A) of the full matrix. For large data the QP is solved on a
+spread subset of points; violated points are added in batches until one full
+pass over every segment finds none. An "infeasible" from the solver on any
+subset is an infeasibility of the full problem (fewer rows, larger feasible
+set), but numerically it is cross-checked with a second, well-conditioned
+formulation before it is believed.
+"""
+
+from __future__ import annotations
+
+import threading
+import time
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+from numpy.typing import NDArray
+
+from ratfit.core.bases import PolynomialSpace
+from ratfit.core.rational import RationalFunction
+from ratfit.core.segments import Segments
+from ratfit.core.solvers import solve_qp
+
+__all__ = [
+    "ArnoldiSystem", "Attempt", "ConstraintSystem", "CROSS_CHECKS", "sk_denominator", "solve_fixed",
+]
+
+Array = NDArray[np.float64]
+CROSS_CHECKS = ("orth", "lp", "none")
+
+# Rows are written to the QR in chunks of this many points (bounded memory).
+_CHUNK = 32_768
+
+
+class ConstraintSystem:
+    """Everything P(n, m) needs for one channel, for any n <= n_max, m <= m_max.
+
+    The design matrix B of the largest size is computed once; A(n, m) uses its
+    leading columns. delta(n, m) comes from one chunked (TSQR) R factor of the
+    largest A: A(n,m) = Q R[:, S], so the singular values of A(n,m) are those
+    of the small matrix R[:, S] and no dense SVD of a tall matrix is needed.
+    """
+
+    def __init__(self, space: PolynomialSpace, seg: Segments, channel: int = 0) -> None:
+        self.space = space
+        self.x = seg.x
+        self.t = space.to_window(seg.x)
+        self.lo = np.ascontiguousarray(seg.lo[:, channel])
+        self.hi = np.ascontiguousarray(seg.hi[:, channel])
+        self.n_points = seg.n_points
+        self._k = 0
+        self.B = np.zeros((self.n_points, 0))
+        self._cum_sq = self.B
+        self._R: Array | None = None
+        self._lock = threading.Lock()
+        order = np.lexsort(self.t.T[::-1])  # sorted along x0, then x1, ...
+        self._order = order
+
+    # -- sizes ------------------------------------------------------------------
+    def prepare(self, n_max: int, m_max: int) -> None:
+        """Make B and the R factor cover (n_max, m_max); call before using threads."""
+        with self._lock:
+            k = max(n_max, m_max)
+            if k > self._k:
+                # Grow geometrically: a search asks for one more column at a time.
+                k = max(k, min(2 * self._k, k + 16))
+                self.B = self.space.design(self.t, k, window=True)
+                self._cum_sq = np.cumsum(self.B**2, axis=1)
+                self._k = k
+                self._R = None
+            if self._R is None:
+                self._R = self._tsqr()
+
+    def _tsqr(self) -> Array:
+        k = self._k
+        acc: Array | None = None
+        for start in range(0, self.n_points, _CHUNK):
+            sl = slice(start, start + _CHUNK)
+            b = self.B[sl]
+            lo, hi = self.lo[sl, None], self.hi[sl, None]
+            block = np.vstack([np.hstack([b, -lo * b]), np.hstack([-b, hi * b])])
+            if acc is not None:
+                block = np.vstack([acc, block])
+            acc = np.linalg.qr(block, mode="r")
+        assert acc is not None
+        return acc[: 2 * k] if acc.shape[0] > 2 * k else acc
+
+    def columns(self, n: int, m: int) -> NDArray[np.int64]:
+        return np.r_[np.arange(n), self._k + np.arange(m)]
+
+    # -- the matrix, by rows ----------------------------------------------------
+    # Row r < N is the lo-row of point r, row N + r its hi-row. Subclasses that
+    # add rows (derivative constraints, extra grid points) override n_rows,
+    # rows, row_norms, residuals, initial_rows and _tsqr; solve_fixed uses
+    # nothing else.
+    @property
+    def n_rows(self) -> int:
+        return 2 * self.n_points
+
+    def rows(self, n: int, m: int, ridx: NDArray[np.int64] | None = None) -> Array:
+        """Rows ``ridx`` of A(n, m) (all rows when None)."""
+        if ridx is None:
+            ridx = np.arange(self.n_rows)
+        pts = ridx % self.n_points
+        sign = np.where(ridx < self.n_points, 1.0, -1.0)[:, None]
+        b = self.B[pts]
+        w = np.where(ridx < self.n_points, -self.lo[pts], self.hi[pts])[:, None]
+        return np.hstack([sign * b[:, :n], w * b[:, :m]])
+
+    def row_norms(self, n: int, m: int) -> Array:
+        sp, sq = self._cum_sq[:, n - 1], self._cum_sq[:, m - 1]
+        return np.sqrt(np.concatenate([sp + self.lo**2 * sq, sp + self.hi**2 * sq]))
+
+    def residuals(self, n: int, m: int, c: Array) -> Array:
+        """A(n, m) c for every row, without forming A."""
+        p = self.B[:, :n] @ c[:n]
+        q = self.B[:, :m] @ c[n:]
+        return np.concatenate([p - self.lo * q, self.hi * q - p])
+
+    def initial_rows(self, size: int) -> NDArray[np.int64]:
+        """Both rows of ``size`` points spread along the data (all rows if small)."""
+        pts = self.spread_subset(size)
+        return np.concatenate([pts, self.n_points + pts])
+
+    def to_rational(self, n: int, m: int, c: Array) -> RationalFunction:
+        return RationalFunction(self.space, c[:n], c[n:])
+
+    def conditioning(self, n: int, m: int) -> tuple[float, float, float]:
+        """(delta, sigma_min, sigma_max) of the full A(n, m)."""
+        with self._lock:  # a concurrent prepare() may be growing R
+            R, k = self._R, self._k
+        assert R is not None and max(n, m) <= k, "call prepare() first"
+        cols = np.r_[np.arange(n), k + np.arange(m)]
+        s = np.linalg.svd(R[:, cols], compute_uv=False)
+        smax, smin = float(s[0]), float(s[-1])
+        delta = smin / smax if smax > 0 else 0.0
+        return delta, smin, smax
+
+    def spread_subset(self, size: int) -> NDArray[np.int64]:
+        """``size`` points spread along the data, plus the extreme segments."""
+        if size >= self.n_points:
+            return np.arange(self.n_points)
+        pick = self._order[np.linspace(0, self.n_points - 1, size).round().astype(np.int64)]
+        mid = 0.5 * (self.lo + self.hi)
+        extra = [np.argmax(mid), np.argmin(mid), np.argmin(self.hi - self.lo)]
+        return np.unique(np.concatenate([pick, np.asarray(extra, dtype=np.int64)]))
+
+
+@dataclass
+class Attempt:
+    """The outcome of P(n, m) for one split: a candidate c or an infeasibility."""
+
+    n: int
+    m: int
+    status: str  # "feasible" (QP-level), "infeasible", "failed"
+    c: Array | None = None
+    raw_c: Array | None = None  # a solver's "optimal" point that violates its constraints
+    solver_status: str = ""
+    decided_by: str = ""
+    formulation: str = "basis"  # "basis" (the seed's matrix) or "arnoldi"
+    disagreement: str = ""
+    delta: float = float("nan")
+    sigma_min: float = float("nan")
+    sigma_max: float = float("nan")
+    active_set_size: int = 0
+    qp_solves: int = 0
+    seconds: float = 0.0
+    messages: list[str] = field(default_factory=list)
+
+    @property
+    def total(self) -> int:
+        return self.n + self.m
+
+    def summary(self) -> dict:
+        return {
+            "n": self.n, "m": self.m, "status": self.status,
+            "solver_status": self.solver_status, "decided_by": self.decided_by,
+            "formulation": self.formulation,
+            "disagreement": self.disagreement, "qp_solves": self.qp_solves,
+            "active_set_size": self.active_set_size, "seconds": round(self.seconds, 6),
+        }
+
+
+def solve_fixed(
+    system: ConstraintSystem,
+    n: int,
+    m: int,
+    *,
+    solver: str = "quadprog",
+    cross_check: str = "orth",
+    active_set: bool | None = None,
+    max_rounds: int = 100,
+) -> Attempt:
+    """Solve P(n, m) on ``system``; the returned c satisfies every row of A > 0."""
+    t0 = time.perf_counter()
+    system.prepare(n, m)
+    delta, smin, smax = system.conditioning(n, m)
+    att = Attempt(n, m, "failed", delta=delta, sigma_min=smin, sigma_max=smax)
+    nrows = system.n_rows
+    k = n + m
+    if active_set is None:
+        active_set = system.n_points > max(300, 8 * k)
+    idx = system.initial_rows(max(4 * k, 64)) if active_set else np.arange(nrows)
+    in_set = np.zeros(nrows, dtype=bool)
+    in_set[idx] = True
+    idx = np.flatnonzero(in_set)
+    norms_all = system.row_norms(n, m)
+    batch = max(64, 4 * k)
+    for _ in range(max_rounds):
+        A = system.rows(n, m, idx)
+        b = delta * norms_all[idx]
+        sol = solve_qp(A, b, solver)
+        att.qp_solves += 1
+        att.solver_status = sol.status
+        c = sol.x if sol.status == "optimal" and _positive(A @ sol.x) else None
+        att.decided_by = solver
+        if sol.status == "optimal" and c is None:
+            c = _refine(A, b, sol.x)
+            if c is not None:
+                att.decided_by = f"{solver}+refine"
+            else:
+                att.messages.append(f"{solver} returned a point violating its own constraints")
+        if c is None and cross_check != "none":
+            c = _cross_check(A, cross_check)
+            att.qp_solves += 1
+            if c is not None:
+                att.decided_by = f"{solver}+{cross_check}"
+                if sol.status == "infeasible":
+                    att.disagreement = (
+                        f"{solver} reported infeasible, the {cross_check} check found a point"
+                    )
+        if c is None:
+            att.status = "infeasible" if sol.status == "infeasible" else "failed"
+            att.messages.append(sol.message)
+            if sol.status == "optimal":
+                att.raw_c = sol.x  # kept so the failure can be verified and shown
+            att.active_set_size = int(idx.size)
+            break
+        # One full pass over every row.
+        res = system.residuals(n, m, c)
+        need = ~(res >= (1.0 - 1e-6) * delta * norms_all)  # NaN counts as needed
+        bad = np.flatnonzero(need & ~in_set)
+        if bad.size == 0:
+            if np.all(res > 0):
+                att.status, att.c = "feasible", c
+            else:
+                att.status = "failed"
+                att.messages.append("solution violates rows of its own active set")
+            att.active_set_size = int(idx.size)
+            break
+        scaled = np.nan_to_num(res[bad] / norms_all[bad], nan=-np.inf)
+        in_set[bad[np.argsort(scaled)[:batch]]] = True
+        idx = np.flatnonzero(in_set)
+    else:
+        att.messages.append(f"active set did not converge in {max_rounds} rounds")
+        att.active_set_size = int(idx.size)
+    att.seconds = time.perf_counter() - t0
+    return att
+
+
+def _refine(A: Array, b: Array, x: Array, steps: int = 3) -> Array | None:
+    """Iterative refinement of a solver's point that misses its constraints by
+    rounding: residuals in extended precision (numpy longdouble), corrections
+    from least squares on the nearly active rows. None if it stays infeasible."""
+    if x is None or not np.all(np.isfinite(x)):
+        return None
+    A_ld = A.astype(np.longdouble)
+    b_ld = b.astype(np.longdouble)
+    x = x.astype(float).copy()
+    for _ in range(steps):
+        r = b_ld - A_ld @ x.astype(np.longdouble)  # > 0 where a row is short
+        act = r > -1e-8 * np.abs(b_ld)
+        if not act.any():
+            break
+        dx, *_ = np.linalg.lstsq(A[act], np.asarray(r[act], dtype=float), rcond=None)
+        x = x + dx
+    res = A_ld @ x.astype(np.longdouble)
+    return x if bool(np.all(np.isfinite(x)) and np.all(res > 0)) else None
+
+
+def _positive(v: Array) -> bool:
+    return bool(np.all(np.isfinite(v)) and np.all(v > 0))
+
+
+def _cross_check(A: Array, kind: str) -> Array | None:
+    """Look for c with A c > 0 in a second formulation; None if it finds none."""
+    norms = np.linalg.norm(A, axis=1)
+    An = A / norms[:, None]
+    if An.shape[0] <= An.shape[1]:
+        # No more rows than unknowns: with full row rank, A c = 1 has a solution.
+        c, *_ = np.linalg.lstsq(An, np.ones(An.shape[0]), rcond=None)
+        c = c / norms.max()
+    elif kind == "orth":
+        # Orthonormal columns: the QP sees a perfectly conditioned matrix.
+        Q, R = np.linalg.qr(An)
+        if np.min(np.abs(np.diag(R))) <= 1e-14 * np.max(np.abs(np.diag(R))):
+            return None
+        qn = np.linalg.norm(Q, axis=1)
+        sol = solve_qp(Q, 1e-3 * qn, "quadprog")
+        if sol.x is None:
+            return None
+        c = np.linalg.solve(R, sol.x)
+    elif kind == "lp":
+        c = _lp_margin(An)
+        if c is None:
+            return None
+    else:  # pragma: no cover - validated by callers
+        raise ValueError(kind)
+    return c if _positive(A @ c) else None
+
+
+def _lp_margin(An: Array) -> Array | None:
+    """max s  s.t.  An c >= s, -1 <= c <= 1 (HiGHS through SciPy)."""
+    from scipy.optimize import linprog
+
+    rows, k = An.shape
+    cost = np.zeros(k + 1)
+    cost[-1] = -1.0
+    a_ub = np.hstack([-An, np.ones((rows, 1))])
+    res = linprog(
+        cost, A_ub=a_ub, b_ub=np.zeros(rows), bounds=[(-1, 1)] * k + [(None, 1)], method="highs"
+    )
+    if res.status != 0 or res.x[-1] <= 0:
+        return None
+    return np.asarray(res.x[:k])
+
+
+class ArnoldiSystem(ConstraintSystem):
+    """P(n, m) for one split in bases orthonormal on the weighted data.
+
+    p = sum a_k phi_k and q = sum b_k psi_k, with phi orthonormal for the
+    weights v / s and psi for v, where s_i = max(|mid_i|, half-width_i) is the
+    scale of segment i and v_i = 1 / |q0(x_i)| for a guess q0 of the
+    denominator. Each point's two rows are divided by s_i / v_i (positive row
+    scaling: the feasible set is the seed's, exactly). When q0 is close to a
+    feasible q, q / q0 ~ 1 at every point and the feasible margin is of the
+    order of the relative segment width, where the same problem written with
+    Legendre columns has margins of 1e-10 and below.
+
+    q0 comes from a few Sanathanan-Koerner steps: the linearised least-squares
+    fit min sum v_i^2 |p(x_i) - mid_i q(x_i)|^2 / s_i^2, re-weighted with the
+    new q each time (:func:`sk_denominator`).
+    """
+
+    def __init__(self, space: PolynomialSpace, seg: Segments, channel: int, n: int, m: int,
+                 q0: Array | None = None, *, like: ConstraintSystem | None = None) -> None:
+        if like is not None:  # share the mapped points and their order (large data)
+            self.__dict__.update({k: like.__dict__[k] for k in (
+                "space", "x", "t", "lo", "hi", "n_points", "_order")})
+            self._k, self._R, self._lock = 0, None, threading.Lock()
+            self.B = self._cum_sq = np.zeros((self.n_points, 0))
+        else:
+            super().__init__(space, seg, channel)
+        self.n, self.m = n, m
+        self.scale = segment_scales(self.lo, self.hi)
+        self.v = denominator_weights(q0, self.n_points)
+        from ratfit.core.arnoldi import ArnoldiBasis
+
+        self.p_basis, self.U = ArnoldiBasis.build(space, self.t, self.v / self.scale, n)
+        self.q_basis, self.V = ArnoldiBasis.build(space, self.t, self.v, m)
+        self.lo_s = self.lo / self.scale
+        self.hi_s = self.hi / self.scale
+        self._cond = self._conditioning()
+        self._norms = np.sqrt(np.concatenate([
+            np.sum(self.U**2, 1) + self.lo_s**2 * np.sum(self.V**2, 1),
+            np.sum(self.U**2, 1) + self.hi_s**2 * np.sum(self.V**2, 1),
+        ]))
+
+    def _conditioning(self) -> tuple[float, float, float]:
+        """(delta, sigma_min, sigma_max) of A from its Gram matrix, which with
+        orthonormal U, V is cheap for any number of points; a Gram matrix only
+        resolves sigma_min / sigma_max above ~1e-7, so a chunked QR takes over
+        below that."""
+        U, V = self.U, self.V
+        cross = -U.T @ ((self.lo_s + self.hi_s)[:, None] * V)
+        G = np.block([
+            [2.0 * np.eye(U.shape[1]), cross],
+            [cross.T, V.T @ ((self.lo_s**2 + self.hi_s**2)[:, None] * V)],
+        ])
+        ev = np.linalg.eigvalsh(G)
+        smax = float(np.sqrt(max(ev[-1], 0.0)))
+        smin = float(np.sqrt(max(ev[0], 0.0)))
+        if smax > 0 and smin > 1e-6 * smax:
+            return smin / smax, smin, smax
+        acc = None
+        for start in range(0, self.n_points, _CHUNK):
+            rid = np.arange(start, min(start + _CHUNK, self.n_points))
+            block = self.rows(self.n, self.m, np.concatenate([rid, self.n_points + rid]))
+            acc = np.linalg.qr(block if acc is None else np.vstack([acc, block]), mode="r")
+        sv = np.linalg.svd(acc, compute_uv=False)
+        return (float(sv[-1] / sv[0]) if sv[0] > 0 else 0.0), float(sv[-1]), float(sv[0])
+
+    def _check(self, n: int, m: int) -> None:
+        if (n, m) != (self.n, self.m):
+            raise ValueError(f"this ArnoldiSystem is for (n, m) = ({self.n}, {self.m})")
+
+    def prepare(self, n_max: int, m_max: int) -> None:  # everything is built up front
+        pass
+
+    def conditioning(self, n: int, m: int) -> tuple[float, float, float]:
+        self._check(n, m)
+        return self._cond
+
+    def rows(self, n: int, m: int, ridx: NDArray[np.int64] | None = None) -> Array:
+        self._check(n, m)
+        if ridx is None:
+            ridx = np.arange(self.n_rows)
+        pts = ridx % self.n_points
+        first = ridx < self.n_points
+        sign = np.where(first, 1.0, -1.0)[:, None]
+        w = np.where(first, -self.lo_s[pts], self.hi_s[pts])[:, None]
+        return np.hstack([sign * self.U[pts], w * self.V[pts]])
+
+    def row_norms(self, n: int, m: int) -> Array:
+        self._check(n, m)
+        return self._norms
+
+    def residuals(self, n: int, m: int, c: Array) -> Array:
+        self._check(n, m)
+        p = self.U @ c[:n]
+        q = self.V @ c[n:]
+        return np.concatenate([p - self.lo_s * q, self.hi_s * q - p])
+
+    def to_rational(self, n: int, m: int, c: Array) -> RationalFunction:
+        self._check(n, m)
+        return RationalFunction(self.space, c[:n], c[n:], p_basis=self.p_basis,
+                                q_basis=self.q_basis)
+
+
+def denominator_weights(q0: Array | None, n_points: int) -> Array:
+    """v = 1 / |q0| scaled to max 1 (zeros of q0 floored at 1e-14 max |q0|)."""
+    if q0 is None:
+        return np.ones(n_points)
+    aq = np.abs(q0)
+    v = 1.0 / np.maximum(aq, 1e-14 * float(np.max(aq)))
+    return v / np.max(v)
+
+
+def segment_scales(lo: Array, hi: Array) -> Array:
+    """s = max(|mid|, half-width): the per-point row scale of the weighted forms."""
+    return np.maximum(np.abs(0.5 * (lo + hi)), 0.5 * (hi - lo))
+
+
+def sk_denominator(space: PolynomialSpace, seg: Segments, channel: int | Sequence[int],
+                   n: int | Sequence[int], m: int, steps: int = 4, max_points: int = 4000,
+                   like: ConstraintSystem | None = None) -> Array | None:
+    """Values at every data point of a denominator guess for (n, m), from
+    re-weighted linearised least squares (Sanathanan-Koerner) on at most
+    ``max_points`` points spread over the data. None if it breaks down.
+
+    ``channel`` and ``n`` may be sequences: one q shared by several channels,
+    each with its own numerator size, minimising the sum of their residuals."""
+    from ratfit.core.arnoldi import ArnoldiBasis
+    from ratfit.errors import InputError
+
+    chans = [channel] if isinstance(channel, (int, np.integer)) else list(channel)
+    sizes = [n] if isinstance(n, (int, np.integer)) else list(n)
+    t_all = space.to_window(seg.x) if like is None else like.t
+    if seg.n_points > max_points:
+        order = np.lexsort(t_all.T[::-1]) if like is None else like._order
+        pick = order[np.linspace(0, seg.n_points - 1, max_points).round().astype(np.int64)]
+        pick = np.unique(pick)
+    else:
+        pick = np.arange(seg.n_points)
+    t = t_all[pick]
+    lo, hi = seg.lo[np.ix_(pick, chans)], seg.hi[np.ix_(pick, chans)]
+    scale = segment_scales(lo, hi)
+    d = 0.5 * (lo + hi) / scale
+    v = np.ones(pick.size)
+    guess = None
+    for _ in range(steps):
+        try:
+            q_basis, V = ArnoldiBasis.build(space, t, v, m)
+            # min sum_c ||U_c a_c - D_c V b|| over ||b|| = 1: eliminate each a_c
+            # (U_c is orthonormal); the normal matrix (m x m) is enough for a guess.
+            G = np.zeros((m, m))
+            for c, nc in enumerate(sizes):
+                _, U = ArnoldiBasis.build(space, t, v / scale[:, c], nc)
+                DV = d[:, c, None] * V
+                W = U.T @ DV
+                G += DV.T @ DV - W.T @ W
+        except InputError:
+            break
+        _, vecs = np.linalg.eigh(G)
+        b = vecs[:, 0]
+        qv = (V @ b) / v
+        if not np.all(np.isfinite(qv)) or not np.any(qv):
+            break
+        if np.sum(qv > 0) < np.sum(qv < 0):
+            qv, b = -qv, -b
+        guess = (q_basis, b)
+        v = denominator_weights(qv, pick.size)
+    if guess is None:
+        return None
+    with np.errstate(all="ignore"):
+        q_all = guess[0].evaluate(t_all, guess[1], window=True)
+    return q_all if np.all(np.isfinite(q_all)) and np.any(q_all) else None

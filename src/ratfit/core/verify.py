@@ -1,0 +1,115 @@
+"""Verification of a fit: every segment met, no pole in the domain.
+
+This is the only place that decides whether a fit is a success. A non-finite
+value of r (q = 0 gives inf or NaN, and NaN compares False) counts as a
+violation of infinite size, never as satisfied.
+"""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from ratfit.core.rational import RationalFunction
+from ratfit.core.segments import Segments
+
+__all__ = ["Verification", "verify", "pole_check"]
+
+# Upper limit on the dense grid used for the n-D pole check.
+_GRID_POINTS = 200_000
+
+
+@dataclass(frozen=True)
+class Verification:
+    """Outcome of evaluating r at every input point and checking q for poles."""
+
+    verified: bool
+    max_violation: float  # >= 0; largest distance outside a segment (inf if r non-finite)
+    max_violation_rel: float  # the same divided by the segment width
+    worst_index: int  # point where r is closest to (or farthest outside) its segment
+    n_violations: int
+    min_margin: float  # min over points of min(r - lo, hi - r); < 0 means violated
+    poles_in_domain: int
+    pole_locations: tuple[float, ...]
+    denominator_sign_changes: bool
+    linf: float  # max |r - y|
+    l2: float  # RMSE of r - y
+    max_rel_error: float  # max |r - y| / |y| over points with y != 0
+    n_points: int
+
+    def to_dict(self) -> dict:
+        d = asdict(self)
+        d["pole_locations"] = list(self.pole_locations)
+        return d
+
+
+def verify(rf: RationalFunction, seg: Segments, *, channel: int = 0) -> Verification:
+    """Evaluate ``rf`` at every point of ``seg`` (one channel) and check poles."""
+    lo, hi = seg.lo[:, channel], seg.hi[:, channel]
+    y = seg.center[:, channel]
+    q = rf.denominator(seg.x)
+    p = rf.numerator(seg.x)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        r = p / q
+    finite = np.isfinite(r)
+    below = np.where(finite, lo - r, np.inf)
+    above = np.where(finite, r - hi, np.inf)
+    signed = np.maximum(below, above)  # > 0 outside, <= 0 inside
+    worst = int(np.argmax(signed))
+    max_violation = float(max(signed[worst], 0.0))
+    width = hi - lo
+    with np.errstate(divide="ignore", invalid="ignore"):
+        rel = np.where(signed > 0, signed / width, 0.0)
+    rel = np.where((signed > 0) & (width == 0), np.inf, rel)
+    n_viol = int(np.count_nonzero(signed > 0))
+    err = np.where(finite, np.abs(r - y), np.inf)
+    nz = y != 0
+    with np.errstate(divide="ignore", invalid="ignore"):
+        relerr = err[nz] / np.abs(y[nz])
+    poles, sign_change = pole_check(rf, seg.x, q)
+    ok = n_viol == 0 and not poles and not sign_change and bool(finite.all())
+    return Verification(
+        verified=ok,
+        max_violation=max_violation,
+        max_violation_rel=float(rel.max()),
+        worst_index=worst,
+        n_violations=n_viol,
+        min_margin=float(-signed.max()),
+        poles_in_domain=len(poles),
+        pole_locations=tuple(float(v) for v in poles),
+        denominator_sign_changes=sign_change,
+        linf=float(err.max()),
+        l2=float(np.sqrt(np.mean(err**2))),
+        max_rel_error=float(relerr.max()) if relerr.size else 0.0,
+        n_points=seg.n_points,
+    )
+
+
+def pole_check(
+    rf: RationalFunction, x: NDArray[np.float64], q_at_x: NDArray[np.float64] | None = None
+) -> tuple[list[float], bool]:
+    """Poles of r in the domain: (real pole locations in 1-D, whether q changes sign).
+
+    1-D: real roots of q from its basis coefficients (companion matrix), plus a
+    sign check of q on a dense grid and the data points, which catches roots the
+    eigenvalue solver misplaces. n-D: q's sign on a dense grid of the domain box
+    and at the data points; a sign change (or a zero) means q vanishes inside.
+    """
+    space = rf.space
+    q_at_x = rf.denominator(x) if q_at_x is None else q_at_x
+    poles: list[float] = []
+    if space.dim == 1:
+        poles = [float(v) for v in rf.real_poles_in_domain()]
+        grid = np.linspace(-1.0, 1.0, max(4001, 4 * len(x) + 1))
+    else:
+        per_dim = max(3, int(_GRID_POINTS ** (1.0 / space.dim)))
+        axes = [np.linspace(-1.0, 1.0, per_dim)] * space.dim
+        grid = np.stack([g.ravel() for g in np.meshgrid(*axes, indexing="ij")], axis=1)
+    qg = rf.denominator(grid, window=True)
+    vals = np.concatenate([np.ravel(q_at_x), np.ravel(qg)])
+    if not np.all(np.isfinite(vals)):
+        return poles, True
+    sign_change = bool(np.any(vals > 0) and np.any(vals < 0)) or bool(np.any(vals == 0))
+    return poles, sign_change

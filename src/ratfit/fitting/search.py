@@ -1,0 +1,563 @@
+"""Search for the rational function with the fewest coefficients n + m.
+
+Feasibility of P(n, m) is upward closed: a solution at (n, m) gives one at
+(n + 1, m) and (n, m + 1) (pad with a zero coefficient). So the feasible splits
+form a staircase, and the minimal total is found by walking it:
+
+1. Balanced probe: totals T = min_total, min_total + 1, ... with the split
+   (ceil(T/2), floor(T/2)) until one is feasible; that bounds the answer. Each
+   infeasible probe (k, l) also rules out every (n, m) with n <= k, m <= l.
+2. Staircase: with ``best`` the smallest feasible total so far, visit
+   m = 1, 2, ... and test (best - 1 - m, m); when feasible, ``best`` drops by
+   one and the same m is tried again, otherwise m grows. Every infeasible
+   answer rules out the whole column below it, so each test is at total
+   best - 1 and the walk costs O(best) QPs instead of ALTA's O(best^2).
+
+Split rule: among feasible splits of the minimal total, the walk meets the
+one with the fewest denominator coefficients m first (the closest to a
+polynomial: fewest candidate poles, cheapest to evaluate); that is the
+default ``split_rule="min-m"``. ``split_rule="error"`` tests every split of the
+minimal total and keeps the one whose values are most central in their
+segments (smallest max |r - y| / half-width).
+
+Independent QPs (speculative tests of the next columns, all splits of one
+total) run in a thread pool: the solvers release the GIL.
+"""
+
+from __future__ import annotations
+
+import os
+import time
+from collections.abc import Callable, Iterable
+from concurrent.futures import ThreadPoolExecutor
+
+import numpy as np
+from numpy.typing import ArrayLike
+
+from ratfit.core.bases import INDEX_SETS, PolynomialSpace, get_family
+from ratfit.core.qp import (
+    CROSS_CHECKS,
+    ArnoldiSystem,
+    Attempt,
+    ConstraintSystem,
+    sk_denominator,
+    solve_fixed,
+)
+from ratfit.core.rational import RationalFunction
+from ratfit.core.results import STATUS_MESSAGES, FitResult
+from ratfit.core.segments import Segments
+from ratfit.core.solvers import check_solver
+from ratfit.core.verify import Verification, verify
+from ratfit.errors import InputError
+
+__all__ = ["RationalFitter", "fit"]
+
+STRATEGIES = ("staircase", "exhaustive")
+FORMULATIONS = ("auto", "arnoldi", "basis")
+SPLIT_RULES = ("min-m", "error")
+DEFAULT_MAX_TOTAL = 100
+
+
+class RationalFitter:
+    """Fit r = p / q inside vertical segments with the fewest coefficients.
+
+    Parameters (all keyword-only; scikit-learn style: stored, checked in ``fit``)
+    ----------
+    basis : "legendre" (default), "chebyshev" or "monomial" (powers of the
+        scaled variable, the seed's "centered monomials").
+    index_set : "total" or "tensor" (n-D graded order; same thing in 1-D).
+    domain : (d, 2) bounds mapped to [-1, 1]^d; default: the data bounds.
+    n, m : fix the split (coefficient counts, not degrees): one QP, no search.
+    total : try every split of this one total.
+    min_total, max_total : search range (default 2 .. 100).
+    strategy : "staircase" (default) or "exhaustive" (every split of every
+        total, ascending; ALTA's search).
+    split_rule : "min-m" (default) or "error"; see module docstring.
+    solver : QP solver name (see ``ratfit.core.solvers.available_solvers()``).
+    cross_check : how an "infeasible" is checked before it is believed:
+        "orth" (QP on orthonormalised rows), "lp" (HiGHS margin LP) or "none".
+    active_set : None = automatic (large data), True or False.
+    jobs : threads for independent QPs. Default: all cores, used once QPs
+        take long enough for threads to pay off (> 20 ms each on average).
+    callback : called with each :class:`~ratfit.core.qp.Attempt` (progress).
+    formulation : how P(n, m) is written for the solver. "arnoldi": p and q in
+        bases orthonormal on the data, weighted by a denominator guess
+        (:class:`~ratfit.core.qp.ArnoldiSystem`), the well-conditioned form that
+        finds the smallest fits; "basis": the seed's matrix in the basis
+        family; "auto" (default): arnoldi where it applies (1-D, or the total
+        index set in n-D), else basis. Arnoldi fits are stored with their
+        recurrences; ``rational_.to_family()`` converts.
+
+    Learned attributes: ``results_`` (one :class:`FitResult` per channel),
+    ``result_`` and ``rational_`` (first channel), ``segments_``.
+    """
+
+    def __init__(
+        self,
+        *,
+        basis: str = "legendre",
+        index_set: str = "total",
+        domain: ArrayLike | None = None,
+        n: int | None = None,
+        m: int | None = None,
+        total: int | None = None,
+        min_total: int = 2,
+        max_total: int | None = None,
+        strategy: str = "staircase",
+        split_rule: str = "min-m",
+        solver: str = "quadprog",
+        cross_check: str = "orth",
+        active_set: bool | None = None,
+        jobs: int | None = None,
+        callback: Callable[[Attempt], None] | None = None,
+        formulation: str = "auto",
+    ) -> None:
+        self.basis = basis
+        self.index_set = index_set
+        self.domain = domain
+        self.n = n
+        self.m = m
+        self.total = total
+        self.min_total = min_total
+        self.max_total = max_total
+        self.strategy = strategy
+        self.split_rule = split_rule
+        self.solver = solver
+        self.cross_check = cross_check
+        self.active_set = active_set
+        self.jobs = jobs
+        self.callback = callback
+        self.formulation = formulation
+
+    # -- sklearn-style parameter access -------------------------------------------
+    _PARAMS = (
+        "basis", "index_set", "domain", "n", "m", "total", "min_total", "max_total",
+        "strategy", "split_rule", "solver", "cross_check", "active_set", "jobs", "callback",
+        "formulation",
+    )
+
+    def get_params(self) -> dict:
+        return {k: getattr(self, k) for k in self._PARAMS}
+
+    def set_params(self, **params) -> RationalFitter:
+        for k, v in params.items():
+            if k not in self._PARAMS:
+                raise InputError(f"unknown parameter {k!r}; valid: {', '.join(self._PARAMS)}")
+            setattr(self, k, v)
+        return self
+
+    def __repr__(self) -> str:
+        return f"RationalFitter(basis={self.basis!r}, solver={self.solver!r})"
+
+    # -- validation -------------------------------------------------------------------
+    def _validate(self, seg: Segments) -> PolynomialSpace:
+        get_family(self.basis)
+        if self.index_set not in INDEX_SETS:
+            raise InputError(f"unknown index set {self.index_set!r}; choose total or tensor")
+        if self.strategy not in STRATEGIES:
+            raise InputError(f"unknown strategy {self.strategy!r}; choose {STRATEGIES}")
+        if self.split_rule not in SPLIT_RULES:
+            raise InputError(f"unknown split rule {self.split_rule!r}; choose {SPLIT_RULES}")
+        if self.formulation not in FORMULATIONS:
+            raise InputError(
+                f"unknown formulation {self.formulation!r}; choose {', '.join(FORMULATIONS)}"
+            )
+        if self.formulation == "arnoldi" and seg.dim > 1 and self.index_set != "total":
+            raise InputError("formulation 'arnoldi' needs index_set='total' in n-D")
+        if self.cross_check not in CROSS_CHECKS:
+            raise InputError(f"unknown cross check {self.cross_check!r}; choose {CROSS_CHECKS}")
+        check_solver(self.solver)
+        for name in ("n", "m"):
+            v = getattr(self, name)
+            if v is not None and (not _is_int(v) or v < 1):
+                raise InputError(f"{name} must be an integer >= 1 (a coefficient count), got {v!r}")
+        if (self.n is None) != (self.m is None):
+            raise InputError("give both n and m, or neither")
+        if self.total is not None and (not _is_int(self.total) or self.total < 2):
+            raise InputError(f"total must be an integer >= 2, got {self.total!r}")
+        if not _is_int(self.min_total) or self.min_total < 2:
+            raise InputError(f"min_total must be an integer >= 2, got {self.min_total!r}")
+        if self.max_total is not None and (
+            not _is_int(self.max_total) or self.max_total < self.min_total
+        ):
+            raise InputError(
+                f"max_total must be an integer >= min_total={self.min_total}, "
+                f"got {self.max_total!r}"
+            )
+        if self.jobs is not None and (not _is_int(self.jobs) or self.jobs < 1):
+            raise InputError(f"jobs must be an integer >= 1, got {self.jobs!r}")
+        zero = seg.hi == seg.lo
+        if zero.any():
+            i, j = (int(v) for v in np.argwhere(zero)[0])
+            raise InputError(
+                f"{int(zero.sum())} segment(s) have zero width (first: row {i}, channel "
+                f"{seg.names[j]}, lo = hi = {float(seg.lo[i, j])!r}); a rational cannot be "
+                "verified to hit a value exactly in floating point: give the segments an "
+                "absolute floor (CLI: add --abs-width W next to --dt; each segment takes "
+                "the larger)"
+            )
+        domain = seg.bounds() if self.domain is None else np.asarray(self.domain, float)
+        domain = np.asarray(domain, dtype=float).reshape(-1, 2)
+        if domain.shape[0] != seg.dim:
+            raise InputError(f"domain has {domain.shape[0]} dimension(s), data has {seg.dim}")
+        if seg.n_points == 1 and self.domain is None:
+            raise InputError("a single data point has no domain: give domain bounds")
+        outside = (seg.x < domain[:, 0]) | (seg.x > domain[:, 1])
+        if outside.any():
+            i = int(np.argwhere(outside)[0][0])
+            raise InputError(f"point {i} ({seg.x[i].tolist()}) lies outside the given domain")
+        return PolynomialSpace(self.basis, domain, self.index_set)
+
+    # -- extension points (subclasses: monotone CDFs, other formulations) ------------
+    def _make_system(self, space: PolynomialSpace, seg: Segments, j: int) -> ConstraintSystem:
+        return ConstraintSystem(space, seg, j)
+
+    def _resolved_formulation(self, space: PolynomialSpace, seg: Segments) -> str:
+        form = self.formulation
+        if form == "auto":
+            form = "arnoldi" if seg.dim == 1 or space.index_set == "total" else "basis"
+        return form
+
+    def _needs_shared_system(self, space: PolynomialSpace, seg: Segments) -> bool:
+        """Whether splits are solved on the shared system (prepared before threads)."""
+        return self._resolved_formulation(space, seg) != "arnoldi"
+
+    def _split_system(self, space: PolynomialSpace, seg: Segments, j: int, n: int,
+                      m: int, like: ConstraintSystem | None = None) -> ConstraintSystem | None:
+        """A system for one split only (None: use the shared one)."""
+        if self._resolved_formulation(space, seg) != "arnoldi":
+            return None
+        try:
+            q0 = sk_denominator(space, seg, j, n, m, like=like)
+            return ArnoldiSystem(space, seg, j, n, m, q0, like=like)
+        except InputError:
+            return None  # too few points for this many coefficients: the seed's form says so
+
+    def _verify(self, rf: RationalFunction, seg: Segments, j: int) -> Verification:
+        return verify(rf, seg, channel=j)
+
+    # -- fitting -----------------------------------------------------------------------
+    def fit(self, segments: Segments) -> RationalFitter:
+        """Fit every channel of ``segments``; returns self."""
+        if not isinstance(segments, Segments):
+            raise TypeError(f"fit() takes a Segments object, got {type(segments).__name__}")
+        space = self._validate(segments)
+        self.space_ = space
+        self.segments_ = segments
+        self.results_ = [
+            self._fit_channel(space, segments, j) for j in range(segments.n_channels)
+        ]
+        return self
+
+    @property
+    def result_(self) -> FitResult:
+        return self._fitted().results_[0]
+
+    @property
+    def rational_(self) -> RationalFunction | None:
+        return self._fitted().results_[0].rational
+
+    @property
+    def success_(self) -> bool:
+        return all(r.success for r in self._fitted().results_)
+
+    def _fitted(self) -> RationalFitter:
+        if not hasattr(self, "results_"):
+            raise AttributeError("this RationalFitter is not fitted yet: call fit() first")
+        return self
+
+    def _fit_channel(self, space: PolynomialSpace, seg: Segments, j: int) -> FitResult:
+        t0 = time.perf_counter()
+        run = _Search(self, space, seg, j)
+        if self.n is not None:
+            best = run.fixed(int(self.n), int(self.m))  # type: ignore[arg-type]
+            lo_t = hi_t = int(self.n) + int(self.m)  # type: ignore[arg-type]
+        elif self.total is not None:
+            lo_t = hi_t = int(self.total)
+            best = run.all_splits(lo_t)
+        else:
+            lo_t = int(self.min_total)
+            hi_t = int(self.max_total or DEFAULT_MAX_TOTAL)
+            best = run.exhaustive(lo_t, hi_t) if self.strategy == "exhaustive" else (
+                run.staircase(lo_t, hi_t)
+            )
+        return run.result(best, lo_t, hi_t, time.perf_counter() - t0)
+
+
+def fit(segments: Segments, **params) -> FitResult:
+    """Functional shortcut: ``RationalFitter(**params).fit(segments).result_``."""
+    return RationalFitter(**params).fit(segments).result_
+
+
+def _is_int(v: object) -> bool:
+    return isinstance(v, (int, np.integer)) and not isinstance(v, bool)
+
+
+Candidate = tuple[Attempt, RationalFunction | None, Verification | None]
+
+
+class _Search:
+    """One channel's search state: cached attempts and their verifications."""
+
+    def __init__(self, fitter: RationalFitter, space: PolynomialSpace, seg: Segments, j: int):
+        self.f = fitter
+        self.space = space
+        self.seg = seg
+        self.channel = j
+        self.system = fitter._make_system(space, seg, j)
+        self.cache: dict[tuple[int, int], Candidate] = {}
+        self.infeasible: list[tuple[int, int]] = []
+        self.jobs = int(fitter.jobs or os.cpu_count() or 1)
+        # distinct points, from the system's sort order (np.unique on rows is slow)
+        srt = self.system.t[self.system._order]
+        self.cap = 1 + int(np.count_nonzero(np.any(srt[1:] != srt[:-1], axis=1)))
+
+    # -- testing one split -----------------------------------------------------------
+    def _run(self, n: int, m: int) -> Candidate:
+        system = self.f._split_system(self.space, self.seg, self.channel, n, m,
+                                      like=self.system)
+        form = "arnoldi" if system is not None else "basis"
+        if system is None:
+            system = self.system
+            system.prepare(n, m)
+        att = solve_fixed(
+            system, n, m, solver=self.f.solver, cross_check=self.f.cross_check,
+            active_set=self.f.active_set,
+        )
+        if form == "arnoldi" and att.status == "failed":
+            # A numerical failure in the weighted form: the seed's form decides.
+            self.system.prepare(n, m)
+            retry = solve_fixed(
+                self.system, n, m, solver=self.f.solver, cross_check=self.f.cross_check,
+                active_set=self.f.active_set,
+            )
+            if retry.status != "failed":
+                retry.messages = att.messages + retry.messages
+                retry.qp_solves += att.qp_solves
+                att, system, form = retry, self.system, "basis"
+        att.formulation = form
+        rf = ver = None
+        c = att.c if att.c is not None else att.raw_c
+        if c is not None:
+            rf = system.to_rational(n, m, c)
+            ver = self.f._verify(rf, self.seg, self.channel)
+        return att, rf, ver
+
+    def _effective(self, s: tuple[int, int]) -> tuple[int, int]:
+        """Feasibility only sees values at the data: beyond as many coefficients
+        as distinct points, p (or q) takes any values already. (n, m) is then
+        answered by (min(n, N), min(m, N)), which the seed's matrix (rank-deficient
+        there) would only make harder for the solver."""
+        return min(s[0], self.cap), min(s[1], self.cap)
+
+    def test_many(self, splits: Iterable[tuple[int, int]]) -> None:
+        splits = list(dict.fromkeys(splits))
+        aliases = {s: self._effective(s) for s in splits if self._effective(s) != s}
+        if aliases:
+            self.test_many([self._effective(s) for s in splits])
+            for s, e in aliases.items():
+                self.cache.setdefault(s, self.cache[e])
+            return
+        todo = [s for s in splits if s not in self.cache]
+        if not todo:
+            return
+        n_max = max(s[0] for s in todo)
+        m_max = max(s[1] for s in todo)
+        if self.f._needs_shared_system(self.space, self.seg):
+            self.system.prepare(n_max, m_max)
+        if self._parallel() and len(todo) > 1:
+            with ThreadPoolExecutor(min(self.jobs, len(todo))) as ex:
+                outs = list(ex.map(lambda s: self._run(*s), todo))
+        else:
+            outs = [self._run(*s) for s in todo]
+        for s, out in zip(todo, outs, strict=True):
+            self.cache[s] = out
+            if out[0].status == "infeasible":
+                self.infeasible.append(s)
+            if self.f.callback is not None:
+                self.f.callback(out[0])
+
+    def _parallel(self) -> bool:
+        """Threads pay off only when QPs are slow: on small problems the Python
+        overhead between solver calls holds the GIL and two threads run slower
+        than one (measured in benchmarks/bench_core.py). With ``jobs=None`` the
+        pool is used once the QPs so far average more than 20 ms."""
+        if self.jobs <= 1:
+            return False
+        if self.f.jobs is not None:
+            return True
+        secs = [c[0].seconds for c in self.cache.values()]
+        return bool(secs) and sum(secs) / len(secs) > 0.02
+
+    def _batch_width(self) -> int:
+        """How many splits to test at once: speculative work only pays when parallel."""
+        return self.jobs if self._parallel() else 1
+
+    def ok(self, s: tuple[int, int]) -> bool:
+        self.test_many([s])
+        ver = self.cache[s][2]
+        return ver is not None and ver.verified
+
+    def ruled_out(self, n: int, m: int) -> bool:
+        return any(n <= a and m <= b for a, b in self.infeasible)
+
+    # -- strategies --------------------------------------------------------------------
+    def fixed(self, n: int, m: int) -> list[tuple[int, int]]:
+        self.test_many([(n, m)])
+        return [(n, m)]
+
+    def all_splits(self, total: int) -> list[tuple[int, int]]:
+        splits = [(total - m, m) for m in range(1, total)]
+        self.test_many(splits)
+        return self._choose([s for s in splits if self.ok(s)]) or splits
+
+    def exhaustive(self, lo: int, hi: int) -> list[tuple[int, int]]:
+        for total in range(lo, hi + 1):
+            splits = [(total - m, m) for m in range(1, total)]
+            self.test_many(splits)
+            good = [s for s in splits if self.ok(s)]
+            if good:
+                return self._choose(good)
+        return []
+
+    def staircase(self, lo: int, hi: int) -> list[tuple[int, int]]:
+        best: tuple[int, int] | None = None
+        # 1. balanced probe, `jobs` totals at a time.
+        total = lo
+        while best is None and total <= hi:
+            width = self._batch_width()
+            probes = [_balanced(t) for t in range(total, min(hi, total + width - 1) + 1)]
+            if total + len(probes) - 1 >= self.cap + 1 and self.cap + 1 >= lo:
+                # A polynomial through every point (q constant: no pole) always fits;
+                # it bounds the answer when balanced splits keep finding poles.
+                probes.append((self.cap, 1))
+            self.test_many(probes)
+            for s in probes:
+                if self.ok(s):
+                    best = s
+                    break
+            total += len(probes)
+        if best is None:
+            return []
+        # 2. staircase walk below the best total.
+        m = 1
+        while True:
+            target = best[0] + best[1] - 1
+            if target < lo:
+                break
+            cols = []
+            mm = m
+            width = self._batch_width()
+            while len(cols) < width and target - mm >= 1:
+                if not self.ruled_out(target - mm, mm):
+                    cols.append((target - mm, mm))
+                mm += 1
+            if not cols:
+                break
+            self.test_many(cols)
+            hit = next((s for s in cols if self.ok(s)), None)
+            if hit is not None:
+                best, m = hit, hit[1]
+            else:
+                m = mm
+        tot = best[0] + best[1]
+        if self.f.split_rule == "error":
+            splits = [(tot - k, k) for k in range(1, tot)]
+            self.test_many(splits)
+            return self._choose([s for s in splits if self.ok(s)])
+        feasible = sorted((s for s in self.cache if s[0] + s[1] == tot and self.ok(s)),
+                          key=lambda s: s[1])
+        return feasible[:1]
+
+    def _choose(self, good: list[tuple[int, int]]) -> list[tuple[int, int]]:
+        if not good:
+            return []
+        if self.f.split_rule == "error":
+            return [min(good, key=lambda s: (self._centrality(s), s[1]))]
+        return [min(good, key=lambda s: s[1])]
+
+    def _centrality(self, s: tuple[int, int]) -> float:
+        rf = self.cache[s][1]
+        assert rf is not None
+        seg = self.seg
+        r = rf(seg.x)
+        mid = 0.5 * (seg.lo[:, self.channel] + seg.hi[:, self.channel])
+        half = 0.5 * (seg.hi[:, self.channel] - seg.lo[:, self.channel])
+        with np.errstate(divide="ignore", invalid="ignore"):
+            return float(np.max(np.where(half > 0, np.abs(r - mid) / half, 0.0)))
+
+    # -- the result ---------------------------------------------------------------------
+    def result(self, chosen: list[tuple[int, int]], lo: int, hi: int, secs: float) -> FitResult:
+        history = tuple(c[0].summary() for c in self.cache.values())
+        disagreements = tuple(
+            f"({a.n},{a.m}): {a.disagreement}" for a, _, _ in self.cache.values() if a.disagreement
+        )
+        qp_solves = sum(c[0].qp_solves for c in self.cache.values())
+        name = self.seg.names[self.channel]
+        proof = None
+        if chosen and self.ok(chosen[0]):
+            att, rf, ver = self.cache[chosen[0]]
+            status, msg = 0, STATUS_MESSAGES[0]
+        else:
+            att, rf, ver = self._closest()
+            if ver is not None:
+                status = 2
+                msg = (
+                    f"{STATUS_MESSAGES[2]}: best candidate (n={att.n}, m={att.m}) misses "
+                    f"{ver.n_violations} segment(s) by up to {ver.max_violation:.3g}, "
+                    f"{ver.poles_in_domain} pole(s) in the domain"
+                )
+            else:
+                status = 1
+                span = f"total {lo}" if lo == hi else f"totals {lo}..{hi}"
+                from ratfit.fitting.certificate import search_proof
+
+                proof = search_proof(self)
+                if proof is not None and proof["checked"]:
+                    msg = (
+                        f"{STATUS_MESSAGES[1]}: no rational of this size fits these "
+                        f"segments (certificate: "
+                        f"{proof['statement']}); every split of {span} was infeasible or failed"
+                    )
+                else:
+                    msg = (
+                        f"{STATUS_MESSAGES[1]}: every split of {span} was infeasible or failed "
+                        f"(largest tried: n={att.n}, m={att.m}); solver failed or reported "
+                        "infeasible without a checked certificate"
+                    )
+        return FitResult(
+            success=status == 0,
+            status=status,
+            message=msg,
+            n=att.n,
+            m=att.m,
+            basis=self.space.family.name,
+            index_set=self.space.index_set,
+            rational=rf,
+            verification=ver,
+            delta=att.delta,
+            sigma_min=att.sigma_min,
+            sigma_max=att.sigma_max,
+            active_set_size=att.active_set_size,
+            qp_solves=qp_solves,
+            seconds=secs,
+            solver=self.f.solver,
+            decided_by=att.decided_by,
+            solver_status=att.solver_status,
+            formulation=att.formulation,
+            channel=name,
+            history=history,
+            disagreements=disagreements,
+            infeasible_proof=proof if status == 1 else None,
+        )
+
+    def _closest(self) -> Candidate:
+        """The best thing reached when nothing verified: smallest violation, else largest."""
+        with_c = [c for c in self.cache.values() if c[2] is not None]
+        if with_c:
+            return min(with_c, key=lambda c: (c[2].max_violation_rel, c[0].total))  # type: ignore[union-attr]
+        return max(self.cache.values(), key=lambda c: (c[0].total, c[0].m))
+
+
+def _balanced(total: int) -> tuple[int, int]:
+    return (total + 1) // 2, total // 2

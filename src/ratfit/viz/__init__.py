@@ -1,0 +1,3 @@
+"""Pictures and the HTML report (matplotlib; imported only when a picture is drawn).
+"""
+

@@ -1,0 +1,431 @@
+"""Pictures people look at before they trust numbers (matplotlib Agg, atomic PNG).
+
+* :func:`plot_slice`: a fit and its data along one coordinate, with the signed
+  error and the allowed band below (the seed's Figures 2 and 3, in n-D on a
+  slice through the data).
+* :func:`plot_error`: the signed error at every data point.
+* :func:`plot_brdf_slices`: BRDF against theta_h for several theta_d (phi_d = 90 deg).
+* :func:`plot_polar`: BRDF in the plane of incidence, for several incidences.
+* :func:`render_sphere` / :func:`plot_spheres`: a sphere under a point light seen
+  by an orthographic camera, the BRDF evaluated per pixel; several BRDFs (data,
+  rational fit, analytic fit) side by side with one exposure.
+
+A BRDF here is any callable ``f(L, V) -> (N, k)`` on unit directions in the local
+frame; NaN marks "unknown" (outside a fit's domain, away from data samples) and
+is drawn grey. :class:`DataBRDF` turns samples into such a callable and
+:func:`fit_brdf_function` a saved fit with its parametrization.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from ratfit._atomic import atomic_path
+from ratfit.errors import InputError
+from ratfit.io.fitfile import SavedFit
+
+__all__ = [
+    "DataBRDF",
+    "fit_brdf_function",
+    "plot_brdf_slices",
+    "plot_error",
+    "plot_polar",
+    "plot_slice",
+    "plot_spheres",
+    "render_sphere",
+    "rusin_dirs",
+]
+
+Array = NDArray[np.float64]
+BRDFFunction = Callable[[Array, Array], Array]
+
+
+# ---------------------------------------------------------------------------- plumbing
+def _plt():
+    import matplotlib
+
+    matplotlib.use("Agg", force=True)
+    import matplotlib.pyplot as plt
+
+    return plt
+
+
+def _save(fig, path: str | Path, dpi: int = 100) -> Path:
+    plt = _plt()
+    with atomic_path(path) as tmp:
+        fig.savefig(tmp, format="png", dpi=dpi)
+    plt.close(fig)
+    return Path(path)
+
+
+def rusin_dirs(th: ArrayLike, td: ArrayLike, pd: ArrayLike) -> tuple[Array, Array]:
+    """Directions for Rusinkiewicz angles (phi_h = 0); rows below the horizon are NaN."""
+    th, td, pd = np.broadcast_arrays(*(np.asarray(a, dtype=float) for a in (th, td, pd)))
+    th, td, pd = th.ravel(), td.ravel(), pd.ravel()
+    d = np.stack([np.sin(td) * np.cos(pd), np.sin(td) * np.sin(pd), np.cos(td)], axis=1)
+    c, s = np.cos(th), np.sin(th)
+    L = np.stack([c * d[:, 0] + s * d[:, 2], d[:, 1], -s * d[:, 0] + c * d[:, 2]], axis=1)
+    h = np.stack([s, np.zeros_like(s), c], axis=1)
+    V = 2.0 * np.einsum("ij,ij->i", L, h)[:, None] * h - L
+    bad = (L[:, 2] <= 0) | (V[:, 2] <= 0)
+    L[bad] = np.nan
+    V[bad] = np.nan
+    return L, V
+
+
+def _eval_masked(fn: BRDFFunction, L: Array, V: Array, k: int | None = None) -> Array:
+    """fn on the rows that are valid directions above the horizon; NaN elsewhere."""
+    ok = np.all(np.isfinite(L), axis=1) & np.all(np.isfinite(V), axis=1)
+    ok &= (L[:, 2] > 1e-9) & (V[:, 2] > 1e-9) if L.size else ok
+    out = None
+    if ok.any():
+        vals = np.asarray(fn(L[ok], V[ok]), dtype=float)
+        if vals.ndim == 1:
+            vals = vals[:, None]
+        out = np.full((L.shape[0], vals.shape[1]), np.nan)
+        out[ok] = vals
+    if out is None:
+        out = np.full((L.shape[0], k or 1), np.nan)
+    return out
+
+
+def fit_brdf_function(fit: Any, *, clip: bool = True, cos_factor: bool = False
+                      ) -> BRDFFunction:
+    """A :class:`ratfit.brdf.fitter.BRDFFit` as f(L, V), NaN outside the fit's domain.
+
+    ``cos_factor``: the fitted values are f cos(theta_l) as the data file gives them
+    (ALTA's INV_STERADIAN_COSINE_FACTOR); divide by cos(theta_l) to get the BRDF.
+    """
+    from ratfit.brdf.parametrizations import get_parametrization
+
+    par = get_parametrization(fit.parametrization)
+    dom = fit.saved.space.domain
+    fold = bool(getattr(fit, "fold_phi_d", False)) and par.name == "RUSIN_TH_TD_PD"
+
+    def f(L: Array, V: Array) -> Array:
+        vals = np.array(fit.eval_dirs(L, V), dtype=float)
+        if clip:
+            x = par.from_dirs(L, V)
+            if fold:
+                x[:, 2] = np.mod(x[:, 2], np.pi)
+            pad = 1e-9 * (dom[:, 1] - dom[:, 0])
+            inside = np.all((x >= dom[:, 0] - pad) & (x <= dom[:, 1] + pad), axis=1)
+            vals[~inside] = np.nan
+        if cos_factor:
+            vals = vals / np.maximum(np.asarray(L)[:, 2:3], 1e-6)
+        return vals
+
+    return f
+
+
+class DataBRDF:
+    """BRDF samples as a function of directions: linear interpolation in the data's
+    coordinates (nearest sample where the simplex search fails), NaN where the nearest
+    sample is farther than ``radius`` (default: 2.5 x the median sample spacing).
+    """
+
+    def __init__(self, coords: ArrayLike, values: ArrayLike, parametrization: str, *,
+                 method: str = "linear", radius: float | None = None,
+                 fold_phi_d: bool = False, cos_factor: bool = False) -> None:
+        from scipy.spatial import cKDTree
+
+        from ratfit.brdf.parametrizations import get_parametrization
+
+        self.param = get_parametrization(parametrization)
+        x = np.asarray(coords, dtype=float)
+        y = np.asarray(values, dtype=float)
+        if y.ndim == 1:
+            y = y[:, None]
+        if x.ndim != 2 or x.shape[1] != self.param.dim or y.shape[0] != x.shape[0]:
+            raise InputError(f"data coordinates {x.shape} / values {y.shape} do not match "
+                             f"{self.param.name} ({self.param.dim} coordinates)")
+        if method not in ("linear", "nearest"):
+            raise InputError(f"method must be 'linear' or 'nearest', got {method!r}")
+        self.x, self.y, self.method = x, y, method
+        self.fold = fold_phi_d
+        self.cos_factor = cos_factor
+        self._lo = x.min(axis=0)
+        span = x.max(axis=0) - self._lo
+        self._span = np.where(span > 0, span, 1.0)
+        self._tree = cKDTree(self._unit(x))
+        if radius is None:
+            dist, _ = self._tree.query(self._unit(x), k=2)
+            radius = 2.5 * float(np.median(dist[:, 1]))
+        self.radius = float(radius)
+        self._interp = None
+
+    def _unit(self, x: Array) -> Array:
+        return (x - self._lo) / self._span
+
+    def _linear(self):
+        if self._interp is None:
+            from scipy.interpolate import LinearNDInterpolator
+
+            self._interp = LinearNDInterpolator(self._unit(self.x), self.y)
+        return self._interp
+
+    def coords(self, L: Array, V: Array) -> Array:
+        x = self.param.from_dirs(L, V)
+        if self.fold and self.param.name == "RUSIN_TH_TD_PD":
+            x[:, 2] = np.mod(x[:, 2], np.pi)
+        return x
+
+    def dense(self, L: Array, V: Array) -> NDArray[np.bool_]:
+        """True where a data sample lies within ``radius`` of the query."""
+        d, _ = self._tree.query(self._unit(self.coords(L, V)))
+        return d <= self.radius
+
+    def __call__(self, L: Array, V: Array) -> Array:
+        u = self._unit(self.coords(L, V))
+        d, i = self._tree.query(u)
+        if self.method == "nearest" or self.param.dim == 1:
+            vals = self.y[i].copy()
+        else:
+            vals = np.asarray(self._linear()(u), dtype=float)
+            miss = ~np.all(np.isfinite(vals), axis=1)
+            vals[miss] = self.y[i[miss]]
+        vals[d > self.radius] = np.nan
+        if self.cos_factor:
+            vals = vals / np.maximum(np.asarray(L)[:, 2:3], 1e-6)
+        return vals
+
+
+# ---------------------------------------------------------------------------- 1-D slices
+def _slice_rows(x: Array, dim: int, at: Array | None) -> tuple[NDArray[np.bool_], Array]:
+    """Data rows on the line through ``at`` along ``dim`` (n-D), and that point."""
+    if x.shape[1] == 1:
+        return np.ones(x.shape[0], bool), x[0]
+    others = [k for k in range(x.shape[1]) if k != dim]
+    if at is None:
+        centre = np.median(x, axis=0)
+        span = np.ptp(x, axis=0)
+        span[span == 0] = 1.0
+        at = x[np.argmin(np.sum(((x - centre) / span) ** 2, axis=1))]
+    span = np.ptp(x, axis=0)
+    span[span == 0] = 1.0
+    close = np.all(np.abs(x[:, others] - at[others]) <= 1e-6 * span[others], axis=1)
+    return close, at
+
+
+def plot_slice(saved: SavedFit, path: str | Path, *, x: ArrayLike | None = None,
+               y: ArrayLike | None = None, lo: ArrayLike | None = None,
+               hi: ArrayLike | None = None, dim: int = 0, channel: int = 0,
+               at: ArrayLike | None = None, title: str | None = None) -> Path:
+    """Fit vs data along coordinate ``dim`` and the signed error (r - y) with the band."""
+    plt = _plt()
+    d = saved.space.dim
+    if not 0 <= dim < d:
+        raise InputError(f"slice dimension {dim} out of range for a {d}-D fit")
+    if not 0 <= channel < len(saved.channels):
+        raise InputError(f"channel {channel} out of range ({len(saved.channels)} channel(s))")
+    dom = saved.space.domain
+    xa = None if x is None else np.asarray(x, dtype=float).reshape(-1, d)
+    at_pt = None if at is None else np.asarray(at, dtype=float)
+    if xa is not None:
+        rows, at_pt = _slice_rows(xa, dim, at_pt)
+    else:
+        rows = None
+        at_pt = dom.mean(axis=1) if at_pt is None else at_pt
+    grid = np.linspace(dom[dim, 0], dom[dim, 1], 600)
+    pts = np.tile(at_pt, (grid.size, 1))
+    pts[:, dim] = grid
+    rf = saved.channels[channel].rational
+    fig, axes = plt.subplots(2, 1, figsize=(8, 6), sharex=True,
+                             gridspec_kw={"height_ratios": [3, 2]})
+    axes[0].plot(grid, rf(pts), lw=1.3, color="C1", label="rational fit")
+    if xa is not None and y is not None and rows is not None:
+        ya = np.asarray(y, dtype=float).reshape(xa.shape[0], -1)[:, channel]
+        xs = xa[rows, dim]
+        order = np.argsort(xs)
+        xs, ys = xs[order], ya[rows][order]
+        if lo is not None and hi is not None:
+            la = np.asarray(lo, dtype=float).reshape(xa.shape[0], -1)[rows, channel][order]
+            ha = np.asarray(hi, dtype=float).reshape(xa.shape[0], -1)[rows, channel][order]
+            axes[0].vlines(xs, la, ha, color="0.6", lw=1, label="segments")
+            axes[1].fill_between(xs, la - ys, ha - ys, color="0.85", step="mid",
+                                 label="allowed")
+        axes[0].plot(xs, ys, ".", ms=3, color="C0", label="data")
+        err = rf(xa[rows][order]) - ys
+        axes[1].plot(xs, err, ".-", ms=3, lw=0.8, color="C3", label="r - y")
+        axes[1].axhline(0.0, color="k", lw=0.5)
+        axes[1].legend(fontsize=8)
+    names = [f"x{k}" for k in range(d)]
+    where = ", ".join(f"{names[k]}={at_pt[k]:.4g}" for k in range(d) if k != dim)
+    axes[0].set_title(title or f"channel {saved.channels[channel].name}"
+                      + (f" along {names[dim]} at {where}" if where else ""))
+    axes[0].legend(fontsize=8)
+    axes[1].set_xlabel(names[dim])
+    axes[1].set_ylabel("signed error")
+    fig.tight_layout()
+    return _save(fig, path)
+
+
+def plot_error(saved: SavedFit, path: str | Path, x: ArrayLike, y: ArrayLike, *,
+               lo: ArrayLike | None = None, hi: ArrayLike | None = None, dim: int = 0,
+               channel: int = 0) -> Path:
+    """Signed error r - y at every data point against coordinate ``dim``, with the band."""
+    plt = _plt()
+    d = saved.space.dim
+    xa = np.asarray(x, dtype=float).reshape(-1, d)
+    ya = np.asarray(y, dtype=float).reshape(xa.shape[0], -1)[:, channel]
+    rf = saved.channels[channel].rational
+    err = rf(xa) - ya
+    fig, ax = plt.subplots(figsize=(8, 4))
+    xs = xa[:, dim]
+    if lo is not None and hi is not None:
+        la = np.asarray(lo, dtype=float).reshape(xa.shape[0], -1)[:, channel] - ya
+        ha = np.asarray(hi, dtype=float).reshape(xa.shape[0], -1)[:, channel] - ya
+        ax.vlines(xs, la, ha, color="0.8", lw=2, label="allowed")
+    ax.plot(xs, err, ".", ms=3, color="C3", label="r - y")
+    ax.axhline(0.0, color="k", lw=0.5)
+    ax.set_xlabel(f"x{dim}")
+    ax.set_ylabel("signed error")
+    ax.set_title(f"channel {saved.channels[channel].name}: signed error at {xa.shape[0]} points "
+                 f"(max |r - y| = {np.max(np.abs(err)):.3g})")
+    ax.legend(fontsize=8)
+    fig.tight_layout()
+    return _save(fig, path)
+
+
+# ---------------------------------------------------------------------------- BRDF views
+def plot_brdf_slices(funcs: dict[str, BRDFFunction], path: str | Path, *,
+                     theta_d_deg: Sequence[float] = (0, 15, 30, 45, 60, 75),
+                     channel: int = 0, log: bool = True) -> Path:
+    """BRDF vs theta_h for several theta_d (phi_d = 90 deg), one panel per theta_d."""
+    plt = _plt()
+    th = np.radians(np.linspace(0.0, 89.5, 300))
+    n = len(theta_d_deg)
+    cols = min(3, n)
+    rows = (n + cols - 1) // cols
+    fig, axes = plt.subplots(rows, cols, figsize=(4 * cols, 3.2 * rows), squeeze=False)
+    styles = ["-", "--", ":", "-."]
+    for a, tdd in zip(axes.flat, theta_d_deg, strict=False):
+        L, V = rusin_dirs(th, np.radians(tdd), np.pi / 2)
+        for i, (name, fn) in enumerate(funcs.items()):
+            v = _eval_masked(fn, L, V)[:, min(channel, _nch(fn, L, V) - 1)]
+            if log:
+                v = np.where(v > 0, v, np.nan)
+            a.plot(np.degrees(th), v, styles[i % 4], lw=1.2, label=name)
+        a.set_title(f"theta_d = {tdd:g} deg", fontsize=9)
+        a.set_xlabel("theta_h (deg)")
+        if log:
+            a.set_yscale("log")
+    for a in list(axes.flat)[n:]:
+        a.set_visible(False)
+    axes[0, 0].set_ylabel("BRDF (1/sr)")
+    axes[0, 0].legend(fontsize=8)
+    fig.tight_layout()
+    return _save(fig, path)
+
+
+def _nch(fn: BRDFFunction, L: Array, V: Array) -> int:
+    ok = np.all(np.isfinite(L), axis=1) & np.all(np.isfinite(V), axis=1)
+    if not ok.any():
+        return 1
+    i = int(np.flatnonzero(ok)[0])
+    v = np.asarray(fn(L[i:i + 1], V[i:i + 1]))
+    return 1 if v.ndim == 1 else int(v.shape[1])
+
+
+def plot_polar(funcs: dict[str, BRDFFunction], path: str | Path, *,
+               theta_i_deg: Sequence[float] = (0, 30, 60), channel: int = 0) -> Path:
+    """BRDF in the plane of incidence: V from -90 (light side) to +90 deg (mirror side)."""
+    plt = _plt()
+    tv = np.radians(np.linspace(-89.0, 89.0, 357))
+    fig, axes = plt.subplots(1, len(theta_i_deg), figsize=(4.2 * len(theta_i_deg), 4),
+                             subplot_kw={"projection": "polar"}, squeeze=False)
+    styles = ["-", "--", ":", "-."]
+    for a, tid in zip(axes.flat, theta_i_deg, strict=True):
+        ti = np.radians(tid)
+        L = np.tile([np.sin(ti), 0.0, np.cos(ti)], (tv.size, 1))
+        V = np.stack([-np.sin(tv), np.zeros_like(tv), np.cos(tv)], axis=1)
+        for i, (name, fn) in enumerate(funcs.items()):
+            v = _eval_masked(fn, L, V)
+            a.plot(tv, v[:, min(channel, v.shape[1] - 1)], styles[i % 4], lw=1.2, label=name)
+        a.set_theta_zero_location("N")
+        a.set_thetamin(-90)
+        a.set_thetamax(90)
+        a.plot([-ti], [a.get_ylim()[1]], "o", color="gold", ms=8)
+        a.set_title(f"incidence {tid:g} deg", fontsize=9)
+    axes[0, 0].legend(fontsize=8, loc="lower left")
+    fig.tight_layout()
+    return _save(fig, path)
+
+
+# ---------------------------------------------------------------------------- spheres
+def sphere_geometry(size: int = 128, light: Sequence[float] = (2.0, 1.5, 3.0)
+                    ) -> tuple[NDArray[np.bool_], Array, Array, Array]:
+    """Pixels on the sphere, local L and V per pixel, and the irradiance factor cos/d^2.
+
+    Orthographic camera along -z (V = +z), unit sphere at the origin, point light at
+    ``light``. The tangent frame per pixel is arbitrary: the BRDFs are isotropic.
+    """
+    if size < 8:
+        raise InputError(f"image size must be >= 8, got {size}")
+    u = (np.arange(size) + 0.5) / size * 2.0 - 1.0
+    X, Y = np.meshgrid(u, -u)
+    r2 = X**2 + Y**2
+    on = r2 < 1.0
+    n = np.stack([X[on], Y[on], np.sqrt(1.0 - r2[on])], axis=1)
+    P = n
+    lp = np.asarray(light, dtype=float)
+    dl = lp - P
+    dist2 = np.sum(dl * dl, axis=1)
+    Lw = dl / np.sqrt(dist2)[:, None]
+    Vw = np.tile([0.0, 0.0, 1.0], (n.shape[0], 1))
+    ref = np.where(np.abs(n[:, 1:2]) < 0.9, [[0.0, 1.0, 0.0]], [[1.0, 0.0, 0.0]])
+    t = np.cross(ref, n)
+    t /= np.linalg.norm(t, axis=1)[:, None]
+    b = np.cross(n, t)
+
+    def local(w: Array) -> Array:
+        return np.stack([np.sum(w * t, 1), np.sum(w * b, 1), np.sum(w * n, 1)], axis=1)
+
+    Ll, Vl = local(Lw), local(Vw)
+    irr = np.maximum(Ll[:, 2], 0.0) / dist2 * float(np.dot(lp, lp))
+    return on, Ll, Vl, irr
+
+
+def render_sphere(fn: BRDFFunction, *, size: int = 128,
+                  light: Sequence[float] = (2.0, 1.5, 3.0)) -> Array:
+    """Linear radiance image (size, size, k): f(L, V) cos(theta_l) E; NaN = unknown.
+
+    Background pixels are 0; pixels the light does not reach are 0.
+    """
+    on, Ll, Vl, irr = sphere_geometry(size, light)
+    lit = irr > 0
+    Lq = np.where(lit[:, None], Ll, np.nan)
+    vals = _eval_masked(fn, Lq, Vl)
+    vals[~lit] = 0.0
+    img = np.zeros((size, size, vals.shape[1]))
+    img[on] = vals * irr[:, None]
+    return img
+
+
+def plot_spheres(images: dict[str, Array], path: str | Path, *, exposure: float | None = None,
+                 title: str | None = None) -> Path:
+    """Rendered spheres side by side with one exposure (99th percentile -> white)."""
+    plt = _plt()
+    allv = np.concatenate([im[np.isfinite(im)].ravel() for im in images.values()])
+    if exposure is None:
+        pos = allv[allv > 0]
+        exposure = 1.0 / float(np.percentile(pos, 99.0)) if pos.size else 1.0
+    fig, axes = plt.subplots(1, len(images), figsize=(3.2 * len(images), 3.6), squeeze=False)
+    for a, (name, im) in zip(axes.flat, images.items(), strict=True):
+        k = im.shape[2]
+        rgb = im[..., :3] if k >= 3 else np.repeat(im[..., :1], 3, axis=2)
+        unknown = ~np.all(np.isfinite(rgb), axis=2)
+        disp = np.clip(np.nan_to_num(rgb, nan=0.0) * exposure, 0.0, 1.0) ** (1.0 / 2.2)
+        disp[unknown] = (0.45, 0.45, 0.5)
+        a.imshow(disp, interpolation="nearest")
+        a.set_title(name, fontsize=9)
+        a.axis("off")
+    if title:
+        fig.suptitle(title, fontsize=10)
+    fig.tight_layout()
+    return _save(fig, path)

@@ -1,0 +1,132 @@
+"""Pictures: files exist with the expected size and are not blank; the rendered sphere of a
+rational fit agrees with the sphere rendered from dense data within the fit's error bound."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+from click.testing import CliRunner
+
+from ratfit.brdf.analytic_models import Model
+from ratfit.brdf.fitter import BRDFFit
+from ratfit.brdf.parametrizations import get_parametrization
+from ratfit.cli import main
+from ratfit.core.segments import Segments
+from ratfit.fitting.search import RationalFitter
+from ratfit.io.fitfile import fit_document, parse_fit, save_fit
+from ratfit.viz import pictures as pic
+
+DT = 0.02
+PARAM = "RUSIN_TH_TD"
+TRUTH = ("lambert+blinn", [0.4, 0.5, 4.0])
+
+
+def _image(path):
+    import matplotlib.image as mpimg
+
+    return mpimg.imread(path)
+
+
+def _check_png(path, shape):
+    im = _image(path)
+    assert im.shape[:2] == shape
+    assert float(np.var(im[..., :3])) > 1e-4  # not blank
+
+
+@pytest.fixture(scope="module")
+def dense():
+    """A dense (theta_h, theta_d) grid from an analytic BRDF and a verified rational fit."""
+    g = np.radians(np.linspace(0.0, 88.0, 30))
+    th, td = np.meshgrid(g, g, indexing="ij")
+    x = np.column_stack([th.ravel(), td.ravel()])
+    L, V = get_parametrization(PARAM).to_dirs(x)
+    y = Model(TRUTH[0])(L, V, TRUTH[1])[:, None]
+    seg = Segments.from_relative(x, y, DT)
+    fitter = RationalFitter(max_total=60).fit(seg)
+    assert fitter.success_
+    doc = fit_document(fitter.results_, extra={"brdf": {"parametrization": PARAM}})
+    saved = parse_fit(json.loads(json.dumps(doc)))
+    return x, y, BRDFFit(saved, PARAM), doc
+
+
+def test_sphere_of_fit_matches_sphere_of_data(dense):
+    x, y, bf, _ = dense
+    data = pic.DataBRDF(x, y, PARAM)
+    img_d = pic.render_sphere(data, size=64)
+    img_f = pic.render_sphere(pic.fit_brdf_function(bf), size=64)
+    on, Ll, Vl, irr = pic.sphere_geometry(64)
+    lit = irr > 0
+    near = np.zeros(lit.shape, bool)
+    near[lit] = data.dense(Ll[lit], Vl[lit])
+    dense_px = np.zeros((64, 64), bool)
+    dense_px[on] = near
+    assert dense_px.sum() > 1000
+    d, f = img_d[dense_px, 0], img_f[dense_px, 0]
+    both = np.isfinite(d) & np.isfinite(f)  # the fit is NaN outside its domain (rim pixels)
+    assert both.mean() > 0.97
+    d, f = d[both], f[both]
+    # a verified fit is within DT * y of every sample; interpolation adds a little
+    assert np.all(np.abs(f - d) <= DT * np.maximum(d, f) * 1.05)
+    assert np.max(np.abs(f - d)) > 0  # two different renderings, not the same one twice
+
+
+def test_brdf_pictures(dense, tmp_path):
+    x, y, bf, _ = dense
+    truth = Model(TRUTH[0])
+    funcs = {"rational": pic.fit_brdf_function(bf),
+             "analytic": lambda L, V: truth(L, V, TRUTH[1])[:, None]}
+    p = pic.plot_brdf_slices(funcs, tmp_path / "s.png")
+    _check_png(p, (640, 1200))
+    p = pic.plot_polar(funcs, tmp_path / "p.png")
+    _check_png(p, (400, 1260))
+    imgs = {"data": pic.render_sphere(pic.DataBRDF(x, y, PARAM), size=48)}
+    imgs.update({k: pic.render_sphere(f, size=48) for k, f in funcs.items()})
+    p = pic.plot_spheres(imgs, tmp_path / "sph.png")
+    _check_png(p, (360, 960))
+
+
+def test_slice_and_error_plots(dense, tmp_path):
+    x, y, bf, _ = dense
+    lo, hi = (1 - DT) * y, (1 + DT) * y
+    p = pic.plot_slice(bf.saved, tmp_path / "slice.png", x=x, y=y, lo=lo, hi=hi, dim=0)
+    _check_png(p, (600, 800))
+    p = pic.plot_error(bf.saved, tmp_path / "err.png", x, y, lo=lo, hi=hi)
+    _check_png(p, (400, 800))
+
+
+def test_cli_plot_and_report(dense, tmp_path):
+    x, y, _, doc = dense
+    fit = tmp_path / "fit.json"
+    save_fit(fit, doc)
+    data = tmp_path / "data.dat"
+    rows = "\n".join(" ".join(repr(float(v)) for v in r) for r in np.hstack([x, y]))
+    data.write_text(f"#DIM 2 1\n#PARAM_IN {PARAM}\n#PARAM_OUT INV_STERADIAN\n{rows}\n")
+    runner = CliRunner()
+    for kind in ("slice", "error", "polar", "sphere"):
+        out = tmp_path / f"{kind}.png"
+        r = runner.invoke(main, ["plot", str(fit), "--data", str(data), "--kind", kind,
+                                 "-o", str(out), "--size", "40"])
+        assert r.exit_code == 0, r.output
+        assert float(np.var(_image(out)[..., :3])) > 1e-4
+    r = runner.invoke(main, ["report", str(fit), "--data", str(data), "-o",
+                             str(tmp_path / "rep")])
+    assert r.exit_code == 0, r.output
+    page = (tmp_path / "rep" / "index.html").read_text()
+    assert "<table>" in page and "lambert+ggx" in page and "http" not in page
+    for src in ("spheres.png", "polar.png", "brdf_slices.png", "slice_0.png", "albedo.png"):
+        assert f"src='{src}'" in page and (tmp_path / "rep" / src).is_file()
+    r = runner.invoke(main, ["brdf", "compare", str(data), str(fit), "--model", "lambert+blinn",
+                             "--json"])
+    assert r.exit_code == 0, r.output
+    rows = json.loads(r.output)["rows"]
+    assert [row["name"] for row in rows] == ["fit.json", "lambert+blinn"]
+    assert rows[1]["rmse"] < 1e-6 < rows[0]["rmse"]  # the true model fits exactly
+    # bad input: one message, exit 2, no file
+    out = tmp_path / "none.png"
+    r = runner.invoke(main, ["plot", str(data), "--kind", "slice", "-o", str(out)])
+    assert r.exit_code == 2 and "error:" in r.output and not out.exists()
+    r = runner.invoke(main, ["plot", str(fit), "--kind", "sphere", "--model", "phong", "-o",
+                             str(out)])
+    assert r.exit_code == 2 and "phong" in r.output and not out.exists()
