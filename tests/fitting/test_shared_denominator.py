@@ -32,7 +32,7 @@ def _runge_channels(points: int = 200) -> tuple[np.ndarray, np.ndarray]:
 def test_common_denominator_is_found_once() -> None:
     x, y = _runge_channels()
     seg = Segments.from_relative(x, y, 1e-3, names=("a", "b", "c"))
-    shared = SharedDenominatorFitter(max_n=12, max_m=6).fit(seg)
+    shared = SharedDenominatorFitter(max_n=12, max_m=6).fit(seg).result_
     assert shared.success
     # The true sizes: p = 1, 2 + x, 1 + x^2 over one q of 3 coefficients.
     assert shared.total <= 1 + 2 + 3 + 3
@@ -85,7 +85,7 @@ def test_cornell_rgb_shared_beats_independent(cornell_slice: Segments) -> None:
     assert indep.success_
     total_indep = sum(r.total for r in indep.results_)
     # m fixed at the size the full search picks (keeps the test short).
-    shared = SharedDenominatorFitter(m=9, max_n=16).fit(seg)
+    shared = SharedDenominatorFitter(m=9, max_n=16).fit(seg).result_
     assert shared.success and shared.m == 9
     assert shared.total < total_indep
     for j, r in enumerate(shared.results):

@@ -116,9 +116,8 @@ def fit_brdf(ds: Dataset, *, dt: float | None = None, abs_width: float | None = 
     """
     seg = brdf_segments(ds, dt=dt, abs_width=abs_width, floor_rel=floor_rel, cosine=cosine,
                         clamp=clamp)
-    fitter = BRDFFitter(**fitter_params)
-    fitter.parametrization = str(ds.meta.get("param_in", "UNKNOWN"))
-    fitter.positive_q = bool(positive_q)
+    fitter = BRDFFitter(parametrization=str(ds.meta.get("param_in", "UNKNOWN")),
+                        positive_q=bool(positive_q), **fitter_params)
     fitter.fit(seg)
     meta = {
         "parametrization": str(ds.meta.get("param_in", "UNKNOWN")),
@@ -147,13 +146,36 @@ class BRDFFitter(RationalFitter):
     above the horizon that convert back to the same coordinates). Segment
     violations, non-finite values and 1-D poles are never relaxed, and an
     unknown parametrization keeps the plain check.
+
+    Parameters
+    ----------
+    parametrization : str, default "UNKNOWN"
+        ALTA name of the input coordinates (``ratfit.brdf.parametrizations``);
+        "UNKNOWN" keeps the plain pole check.
+    positive_q : bool, default False
+        Also constrain q > 0 at the valid grid points inside the QP (rows added
+        by the active set only where violated), so that candidates whose q
+        changes sign between sparse measurements are not produced at all.
+    **params
+        Every other :class:`~ratfit.fitting.search.RationalFitter` parameter.
+
+    Attributes
+    ----------
+    results_, result_, rational_, success_, segments_, space_
+        As for :class:`~ratfit.fitting.search.RationalFitter`.
+
+    Examples
+    --------
+    >>> from ratfit.brdf import BRDFFitter
+    >>> BRDFFitter(parametrization="STARK_2D", positive_q=True, max_total=30)
+    BRDFFitter(parametrization='STARK_2D', positive_q=True, max_total=30)
     """
 
-    parametrization: str = "UNKNOWN"
-    #: Also constrain q > 0 at the valid grid points inside the QP (rows added
-    #: by the active set only where violated), so that candidates whose q
-    #: changes sign between sparse measurements are not produced at all.
-    positive_q: bool = False
+    def __init__(self, *, parametrization: str = "UNKNOWN", positive_q: bool = False,
+                 **params: Any) -> None:
+        super().__init__(**params)
+        self.parametrization = parametrization
+        self.positive_q = positive_q
 
     def _split_system(self, space: PolynomialSpace, seg: Segments, j: int, n: int, m: int,
                       like: ConstraintSystem | None = None) -> ConstraintSystem | None:

@@ -35,6 +35,7 @@ from __future__ import annotations
 import math
 import threading
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -391,34 +392,51 @@ def verify_cdf(
 class MonotoneFitter(RationalFitter):
     """:class:`~ratfit.fitting.search.RationalFitter` for CDFs: monotone rows, CDF verification.
 
-    Extra parameters
-    ----------------
-    form : "two-row" (seed eq. 3, default) or "max" (seed eq. 5; one derivative
-        row per point, the other added only where the active set needs it).
-    grid : K extra constraint points, uniform on the domain (0: data points and
-        the domain ends only).
-    check_points : size of the dense verification grid (default max(10 000, 20 N)).
+    A result is a success only if :func:`verify_cdf` passes (segments met, no
+    pole, non-decreasing and within [0, 1] on a dense grid). 1-D only.
 
-    A result is a success only if :func:`verify_cdf` passes. 1-D only. The
-    QP is always the seed's basis formulation (``formulation="basis"``).
+    Parameters
+    ----------
+    form : {"two-row", "max"}, default "two-row"
+        Derivative rows: seed eq. 3 (two rows per point) or eq. 5 (one row per
+        point, the other added only where the active set needs it; implies the
+        active set).
+    grid : int, default 0
+        Extra constraint points, uniform on the domain (0: the data points and
+        the domain ends only).
+    check_points : int, optional
+        Size of the dense verification grid (default max(10 000, 20 N)).
+    formulation : {"basis", "auto"}, default "basis"
+        The derivative rows exist in the seed's basis formulation only.
+    **params
+        Every other :class:`~ratfit.fitting.search.RationalFitter` parameter.
+
+    Attributes
+    ----------
+    results_, result_, rational_, success_, segments_, space_
+        As for :class:`~ratfit.fitting.search.RationalFitter`.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from ratfit.cdf import MonotoneFitter, cdf_from_table
+    >>> x = np.linspace(0, 1, 40)
+    >>> f = MonotoneFitter(grid=50).fit(cdf_from_table(x, x**2, abs_width=1e-3))
+    >>> f.result_.success
+    True
     """
 
-    _PARAMS = RationalFitter._PARAMS + ("form", "grid", "check_points")
-
     def __init__(
-        self, *, form: str = "two-row", grid: int = 0, check_points: int | None = None, **params
+        self, *, form: str = "two-row", grid: int = 0, check_points: int | None = None,
+        formulation: str = "basis", **params: Any,
     ) -> None:
-        if "formulation" in RationalFitter._PARAMS:
-            params.setdefault("formulation", "basis")
-        super().__init__(**params)
+        super().__init__(formulation=formulation, **params)
         self.form = form
         self.grid = grid
         self.check_points = check_points
 
-    def __repr__(self) -> str:
-        return f"MonotoneFitter(basis={self.basis!r}, form={self.form!r}, grid={self.grid!r})"
-
     def fit(self, segments: Segments) -> MonotoneFitter:
+        """Fit a monotone CDF to every channel of ``segments``; returns self."""
         if self.form not in FORMS:
             raise InputError(f"unknown monotone form {self.form!r}; choose one of {FORMS}")
         if isinstance(self.grid, bool) or not isinstance(self.grid, (int, np.integer)) or (
@@ -429,19 +447,18 @@ class MonotoneFitter(RationalFitter):
             raise InputError(
                 f"monotone CDF fitting is 1-D, the data has {segments.dim} input dimensions"
             )
-        if getattr(self, "formulation", "basis") not in ("basis", "auto"):
+        if self.formulation not in ("basis", "auto"):
             raise InputError(
                 f"formulation {self.formulation!r} has no derivative rows: a monotone CDF "
                 "fit uses the seed's basis formulation"
             )
-        saved = self.active_set
-        if self.form == "max" and self.active_set is None:
-            self.active_set = True  # the max form *is* its starting active set
-        try:
-            super().fit(segments)
-        finally:
-            self.active_set = saved
+        super().fit(segments)
         return self
+
+    def _resolved_active_set(self) -> bool | None:
+        if self.form == "max" and self.active_set is None:
+            return True  # the max form *is* its starting active set
+        return self.active_set
 
     def _make_system(self, space: PolynomialSpace, seg: Segments, j: int) -> ConstraintSystem:
         return MonotoneSystem(space, seg, j, form=self.form, grid=int(self.grid))

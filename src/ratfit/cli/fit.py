@@ -106,7 +106,7 @@ def fit_cmd(input_path: Path, output: Path | None, fmt: str | None, basis: str, 
                 basis=basis, index_set=index_set, domain=list(domain) or None, m=m,
                 max_n=max_total or 60, solver=solver, cross_check=cross_check, jobs=jobs or 1,
                 callback=cb,
-            ).fit(seg)
+            ).fit(seg).result_
             results = shared_fit.results
         else:
             results = RationalFitter(

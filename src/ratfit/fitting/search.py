@@ -35,6 +35,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from ratfit.core.bases import INDEX_SETS, PolynomialSpace, get_family
+from ratfit.core.estimator import Estimator
 from ratfit.core.qp import (
     CROSS_CHECKS,
     ArnoldiSystem,
@@ -58,38 +59,72 @@ SPLIT_RULES = ("min-m", "error")
 DEFAULT_MAX_TOTAL = 100
 
 
-class RationalFitter:
+class RationalFitter(Estimator):
     """Fit r = p / q inside vertical segments with the fewest coefficients.
 
-    Parameters (all keyword-only; scikit-learn style: stored, checked in ``fit``)
-    ----------
-    basis : "legendre" (default), "chebyshev" or "monomial" (powers of the
-        scaled variable, the seed's "centered monomials").
-    index_set : "total" or "tensor" (n-D graded order; same thing in 1-D).
-    domain : (d, 2) bounds mapped to [-1, 1]^d; default: the data bounds.
-    n, m : fix the split (coefficient counts, not degrees): one QP, no search.
-    total : try every split of this one total.
-    min_total, max_total : search range (default 2 .. 100).
-    strategy : "staircase" (default) or "exhaustive" (every split of every
-        total, ascending; ALTA's search).
-    split_rule : "min-m" (default) or "error"; see module docstring.
-    solver : QP solver name (see ``ratfit.core.solvers.available_solvers()``).
-    cross_check : how an "infeasible" is checked before it is believed:
-        "orth" (QP on orthonormalised rows), "lp" (HiGHS margin LP) or "none".
-    active_set : None = automatic (large data), True or False.
-    jobs : threads for independent QPs. Default: all cores, used once QPs
-        take long enough for threads to pay off (> 20 ms each on average).
-    callback : called with each :class:`~ratfit.core.qp.Attempt` (progress).
-    formulation : how P(n, m) is written for the solver. "arnoldi": p and q in
-        bases orthonormal on the data, weighted by a denominator guess
-        (:class:`~ratfit.core.qp.ArnoldiSystem`), the well-conditioned form that
-        finds the smallest fits; "basis": the seed's matrix in the basis
-        family; "auto" (default): arnoldi where it applies (1-D, or the total
-        index set in n-D), else basis. Arnoldi fits are stored with their
-        recurrences; ``rational_.to_family()`` converts.
+    Every parameter is stored unchanged and checked in :meth:`fit`
+    (scikit-learn conventions: ``get_params``, ``set_params``, ``clone`` work).
 
-    Learned attributes: ``results_`` (one :class:`FitResult` per channel),
-    ``result_`` and ``rational_`` (first channel), ``segments_``.
+    Parameters
+    ----------
+    basis : {"legendre", "chebyshev", "monomial"}, default "legendre"
+        Polynomial family of p and q ("monomial": powers of the scaled
+        variable, the seed's "centered monomials").
+    index_set : {"total", "tensor"}, default "total"
+        n-D graded order of the basis functions (the same thing in 1-D).
+    domain : array-like of shape (d, 2), optional
+        Bounds mapped to [-1, 1]^d; default: the data bounds.
+    n, m : int, optional
+        Fix the split (coefficient counts, not degrees): one QP, no search.
+        Give both or neither.
+    total : int, optional
+        Try every split of this one total.
+    min_total, max_total : int, default 2 and None (= 100)
+        Search range of n + m.
+    strategy : {"staircase", "exhaustive"}, default "staircase"
+        "exhaustive" tests every split of every total, ascending (ALTA's search).
+    split_rule : {"min-m", "error"}, default "min-m"
+        Which feasible split of the minimal total to keep (see the module notes).
+    solver : str, default "quadprog"
+        QP solver name (``ratfit.core.solvers.available_solvers()``).
+    cross_check : {"orth", "lp", "none"}, default "orth"
+        How a solver's "infeasible" is checked before it is believed.
+    active_set : bool, optional
+        None: automatic (large data), True or False.
+    jobs : int, optional
+        Threads for independent QPs; default all cores, used once QPs take
+        long enough for threads to pay off (> 20 ms each on average).
+    callback : callable, optional
+        Called with each :class:`~ratfit.core.qp.Attempt` (progress).
+    formulation : {"auto", "arnoldi", "basis"}, default "auto"
+        How P(n, m) is written for the solver: "arnoldi" (p and q in bases
+        orthonormal on the data, weighted by a denominator guess; finds the
+        smallest fits), "basis" (the seed's matrix), "auto" (arnoldi in 1-D
+        and for the total index set in n-D).
+
+    Attributes
+    ----------
+    results_ : list of FitResult
+        One verified-or-not result per channel of the fitted segments.
+    result_ : FitResult
+        The result of the only channel (an error when several were fitted).
+    rational_ : RationalFunction or None
+        ``result_.rational``.
+    success_ : bool
+        Every channel has a verified fit.
+    segments_ : Segments
+        The fitted segments.
+    space_ : PolynomialSpace
+        The basis, index set and domain of the fit.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from ratfit import RationalFitter, Segments
+    >>> x = np.linspace(-1, 1, 50)
+    >>> f = RationalFitter().fit(Segments.from_relative(x, 1 / (2 + x), 0.01))
+    >>> f.result_.success, f.result_.verification.max_violation
+    (True, 0.0)
     """
 
     def __init__(
@@ -128,26 +163,6 @@ class RationalFitter:
         self.jobs = jobs
         self.callback = callback
         self.formulation = formulation
-
-    # -- sklearn-style parameter access -------------------------------------------
-    _PARAMS = (
-        "basis", "index_set", "domain", "n", "m", "total", "min_total", "max_total",
-        "strategy", "split_rule", "solver", "cross_check", "active_set", "jobs", "callback",
-        "formulation",
-    )
-
-    def get_params(self) -> dict:
-        return {k: getattr(self, k) for k in self._PARAMS}
-
-    def set_params(self, **params) -> RationalFitter:
-        for k, v in params.items():
-            if k not in self._PARAMS:
-                raise InputError(f"unknown parameter {k!r}; valid: {', '.join(self._PARAMS)}")
-            setattr(self, k, v)
-        return self
-
-    def __repr__(self) -> str:
-        return f"RationalFitter(basis={self.basis!r}, solver={self.solver!r})"
 
     # -- validation -------------------------------------------------------------------
     def _validate(self, seg: Segments) -> PolynomialSpace:
@@ -251,20 +266,39 @@ class RationalFitter:
 
     @property
     def result_(self) -> FitResult:
-        return self._fitted().results_[0]
+        """The fit of the only channel; with several channels use ``results_[j]``."""
+        return self._single().results_[0]
 
     @property
     def rational_(self) -> RationalFunction | None:
-        return self._fitted().results_[0].rational
+        """The fitted rational of the only channel (None when no fit verified)."""
+        return self._single().results_[0].rational
 
     @property
     def success_(self) -> bool:
+        """Whether every channel has a verified fit."""
         return all(r.success for r in self._fitted().results_)
 
     def _fitted(self) -> RationalFitter:
         if not hasattr(self, "results_"):
-            raise AttributeError("this RationalFitter is not fitted yet: call fit() first")
+            raise AttributeError(
+                f"this {type(self).__name__} is not fitted yet: call fit() first"
+            )
         return self
+
+    def _single(self) -> RationalFitter:
+        res = self._fitted().results_
+        if len(res) != 1:
+            names = ", ".join(r.channel for r in res)
+            raise InputError(
+                f"{type(self).__name__} fitted {len(res)} channels ({names}): result_ and "
+                "rational_ name one channel; use results_[j] (one FitResult per channel)"
+            )
+        return self
+
+    def _resolved_active_set(self) -> bool | None:
+        """The active-set mode a fit uses (subclasses may choose one; never stored back)."""
+        return self.active_set
 
     def _fit_channel(self, space: PolynomialSpace, seg: Segments, j: int) -> FitResult:
         t0 = time.perf_counter()
@@ -308,6 +342,7 @@ class _Search:
         self.cache: dict[tuple[int, int], Candidate] = {}
         self.infeasible: list[tuple[int, int]] = []
         self.jobs = int(fitter.jobs or os.cpu_count() or 1)
+        self.active_set = fitter._resolved_active_set()
         # distinct points, from the system's sort order (np.unique on rows is slow)
         srt = self.system.t[self.system._order]
         self.cap = 1 + int(np.count_nonzero(np.any(srt[1:] != srt[:-1], axis=1)))
@@ -322,14 +357,14 @@ class _Search:
             system.prepare(n, m)
         att = solve_fixed(
             system, n, m, solver=self.f.solver, cross_check=self.f.cross_check,
-            active_set=self.f.active_set,
+            active_set=self.active_set,
         )
         if form == "arnoldi" and att.status == "failed":
             # A numerical failure in the weighted form: the seed's form decides.
             self.system.prepare(n, m)
             retry = solve_fixed(
                 self.system, n, m, solver=self.f.solver, cross_check=self.f.cross_check,
-                active_set=self.f.active_set,
+                active_set=self.active_set,
             )
             if retry.status != "failed":
                 retry.messages = att.messages + retry.messages

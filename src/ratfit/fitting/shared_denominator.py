@@ -42,6 +42,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from ratfit.core.arnoldi import ArnoldiBasis
 from ratfit.core.bases import PolynomialSpace
+from ratfit.core.estimator import Estimator
 from ratfit.core.qp import (
     Attempt,
     denominator_weights,
@@ -218,16 +219,57 @@ class SharedFit:
 
     @property
     def success(self) -> bool:
+        """Every channel has a verified fit with the shared denominator."""
         return bool(self.results) and all(r.success for r in self.results)
 
+    @property
+    def message(self) -> str:
+        """One line: the sizes found, or why a channel has no fit."""
+        if self.success:
+            proof = "proven minimal" if self.proven else "not proven minimal"
+            return (f"shared denominator: n = {list(self.n)}, m = {self.m}, total {self.total} "
+                    f"({proof})")
+        bad = [r for r in self.results if not r.success]
+        if not bad:
+            return "no channel fitted"
+        return "; ".join(f"{r.channel}: {r.message}" for r in bad)
 
-class SharedDenominatorFitter:
-    """Fit every channel of a Segments with one denominator and the fewest
-    coefficients sum(n_c) + m. Keyword parameters as in
-    :class:`~ratfit.fitting.search.RationalFitter` (basis, index_set, domain, solver,
-    cross_check), plus ``max_n`` (largest numerator tried per channel),
-    ``max_m`` and ``jobs`` (threads for the per-channel bisections).
-    ``m`` fixes the denominator size (then only the numerators are searched).
+
+class SharedDenominatorFitter(Estimator):
+    """Fit every channel with one denominator and the fewest coefficients sum(n_c) + m.
+
+    Parameters
+    ----------
+    basis, index_set, domain, solver, cross_check, callback
+        As for :class:`~ratfit.fitting.search.RationalFitter`.
+    m : int, optional
+        Fix the denominator size (then only the numerators are searched).
+    max_n : int, default 60
+        Largest numerator tried per channel.
+    max_m : int, default 30
+        Largest denominator tried.
+    jobs : int, default 1
+        Threads for the per-channel bisections.
+
+    Attributes
+    ----------
+    result_ : SharedFit
+        The whole shared fit (sizes, minimality proof, history).
+    results_ : list of FitResult
+        One result per channel (every channel has the same q).
+    success_ : bool
+        Every channel has a verified fit.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from ratfit import Segments
+    >>> from ratfit.fitting import SharedDenominatorFitter
+    >>> x = np.linspace(-1, 1, 40)
+    >>> y = np.stack([1 / (2 + x), x / (2 + x)], axis=1)
+    >>> f = SharedDenominatorFitter(max_n=8, max_m=4).fit(Segments.from_relative(x, y, 0.01))
+    >>> f.success_, f.result_.m
+    (True, 2)
     """
 
     def __init__(self, *, basis: str = "legendre", index_set: str = "total",
@@ -240,7 +282,8 @@ class SharedDenominatorFitter:
         self.solver, self.cross_check = solver, cross_check
         self.jobs, self.callback = jobs, callback
 
-    def fit(self, seg: Segments) -> SharedFit:
+    def fit(self, seg: Segments) -> SharedDenominatorFitter:
+        """Search the shared-denominator sizes for ``seg``; returns self."""
         if not isinstance(seg, Segments):
             raise TypeError(f"fit() takes a Segments object, got {type(seg).__name__}")
         for name in ("max_n", "max_m"):
@@ -254,7 +297,18 @@ class SharedDenominatorFitter:
         space = helper._validate(seg)  # the same checks and messages as a normal fit
         if seg.dim > 1 and space.index_set != "total":
             raise InputError("a shared denominator needs index_set='total' in n-D")
-        return _SharedSearch(self, space, seg).run()
+        self.result_ = _SharedSearch(self, space, seg).run()
+        self.results_ = self.result_.results
+        self.segments_ = seg
+        return self
+
+    @property
+    def success_(self) -> bool:
+        if not hasattr(self, "result_"):
+            raise AttributeError(
+                "this SharedDenominatorFitter is not fitted yet: call fit() first"
+            )
+        return self.result_.success
 
 
 class _SharedSearch:

@@ -125,12 +125,70 @@ def fit_document(
     return doc
 
 
-def save_fit(path: str | os.PathLike[str], document: dict[str, Any]) -> None:
-    """Write ``document`` atomically (no partial file on failure)."""
+def save_fit(
+    path: str | os.PathLike[str],
+    fit: Any,
+    *,
+    monomial: list[dict | None] | None = None,
+    provenance: dict[str, Any] | None = None,
+    extra: dict[str, Any] | None = None,
+) -> None:
+    """Write a fit file atomically (no partial file on failure).
+
+    Parameters
+    ----------
+    path : str or path-like
+        The JSON file to write.
+    fit : dict, FitResult, list of FitResult, or a fitted estimator
+        A document from :func:`fit_document`, one channel's result, one result
+        per channel, or anything with ``results_`` (``RationalFitter``,
+        ``MonotoneFitter``, ``BRDFFitter``, ``SharedDenominatorFitter``).
+        Only verified fits are written.
+    monomial, provenance, extra
+        As for :func:`fit_document` (not with a ready document).
+
+    Examples
+    --------
+    >>> import numpy as np, tempfile, os
+    >>> from ratfit import RationalFitter, Segments
+    >>> from ratfit.io import load_fit, save_fit
+    >>> x = np.linspace(-1, 1, 30)
+    >>> f = RationalFitter().fit(Segments.from_relative(x, np.exp(x), 0.01))
+    >>> path = os.path.join(tempfile.mkdtemp(), "fit.json")
+    >>> save_fit(path, f)
+    >>> load_fit(path).channels[0].rational.n == f.result_.n
+    True
+    """
+    if isinstance(fit, dict):
+        if monomial is not None or provenance is not None or extra is not None:
+            raise InputError("save_fit: monomial/provenance/extra go to fit_document, "
+                             "not with a ready document")
+        document = fit
+    else:
+        document = fit_document(_as_results(fit), monomial=monomial, provenance=provenance,
+                                extra=extra)
     text = json.dumps(document, indent=1, allow_nan=False)
     with atomic_open(path, "w") as fh:
         fh.write(text)
         fh.write("\n")
+
+
+def _as_results(fit: Any) -> list[FitResult]:
+    if isinstance(fit, FitResult):
+        return [fit]
+    if hasattr(fit, "results_"):
+        return list(fit.results_)
+    if hasattr(fit, "get_params") and not hasattr(fit, "results_"):
+        raise InputError(f"save_fit: this {type(fit).__name__} is not fitted yet: call fit()")
+    if isinstance(fit, (list, tuple)) and all(isinstance(r, FitResult) for r in fit):
+        return list(fit)
+    results = getattr(fit, "results", None)  # SharedFit and similar containers
+    if isinstance(results, list) and all(isinstance(r, FitResult) for r in results):
+        return results
+    raise TypeError(
+        "save_fit takes a fit document, a FitResult, a list of FitResult or a fitted "
+        f"estimator, got {type(fit).__name__}"
+    )
 
 
 def load_fit(path: str | os.PathLike[str]) -> SavedFit:

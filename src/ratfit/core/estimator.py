@@ -1,0 +1,127 @@
+"""scikit-learn conventions for ratfit's estimators, without depending on scikit-learn.
+
+Parameters are the keyword arguments of ``__init__`` (read from the signature of
+every class in the MRO that forwards ``**params`` upwards), stored unchanged as
+attributes; ``fit`` validates them and never writes them back. That is what
+``sklearn.base.clone``, grid searches and pipelines rely on.
+"""
+
+from __future__ import annotations
+
+import inspect
+from typing import Any
+
+import numpy as np
+
+from ratfit.errors import InputError
+
+__all__ = ["Estimator"]
+
+
+class Estimator:
+    """Mixin: ``get_params`` / ``set_params`` / ``__repr__`` from ``__init__``'s signature.
+
+    Examples
+    --------
+    >>> from ratfit import RationalFitter
+    >>> RationalFitter(basis="chebyshev", max_total=30)
+    RationalFitter(basis='chebyshev', max_total=30)
+    >>> RationalFitter().set_params(solver="daqp").get_params()["solver"]
+    'daqp'
+    """
+
+    @classmethod
+    def _param_defaults(cls) -> dict[str, Any]:
+        """Every constructor parameter with its default (the most derived class wins)."""
+        out: dict[str, Any] = {}
+        for klass in cls.__mro__:
+            init = klass.__dict__.get("__init__")
+            if init is None:
+                continue
+            if klass is object:
+                break
+            forwards = False
+            for p in inspect.signature(init).parameters.values():
+                if p.name == "self":
+                    continue
+                if p.kind is p.VAR_KEYWORD:
+                    forwards = True
+                elif p.kind is p.VAR_POSITIONAL:
+                    raise TypeError(f"{cls.__name__}.__init__ must not take *args")
+                else:
+                    out.setdefault(p.name, p.default)
+            if not forwards:
+                break
+        return out
+
+    @classmethod
+    def _get_param_names(cls) -> list[str]:
+        return sorted(cls._param_defaults())
+
+    def get_params(self, deep: bool = True) -> dict[str, Any]:
+        """The constructor parameters of this estimator.
+
+        Parameters
+        ----------
+        deep : bool, default True
+            Also return the parameters of nested estimators as ``name__param``.
+
+        Returns
+        -------
+        dict
+            Parameter name -> value, exactly as given to ``__init__`` or ``set_params``.
+        """
+        out: dict[str, Any] = {}
+        for name in self._get_param_names():
+            value = getattr(self, name)
+            out[name] = value
+            if deep and hasattr(value, "get_params") and not isinstance(value, type):
+                for k, v in value.get_params(deep=True).items():
+                    out[f"{name}__{k}"] = v
+        return out
+
+    def set_params(self, **params: Any) -> Estimator:
+        """Set constructor parameters (``name__param`` reaches nested estimators).
+
+        Returns
+        -------
+        self
+        """
+        valid = self._get_param_names()
+        nested: dict[str, dict[str, Any]] = {}
+        for key, value in params.items():
+            name, sep, sub = key.partition("__")
+            if name not in valid:
+                raise InputError(
+                    f"unknown parameter {name!r} for {type(self).__name__}; "
+                    f"valid: {', '.join(valid)}"
+                )
+            if sep:
+                nested.setdefault(name, {})[sub] = value
+            else:
+                setattr(self, name, value)
+        for name, sub_params in nested.items():
+            getattr(self, name).set_params(**sub_params)
+        return self
+
+    def __repr__(self) -> str:
+        defaults = self._param_defaults()
+        shown = [
+            f"{name}={getattr(self, name)!r}"
+            for name in defaults
+            if not _same(getattr(self, name), defaults[name])
+        ]
+        return f"{type(self).__name__}({', '.join(shown)})"
+
+
+def _same(a: Any, b: Any) -> bool:
+    """Whether a parameter still holds its default (arrays and lists compared by value)."""
+    if a is b:
+        return True
+    if type(a) is not type(b) and not (isinstance(a, (int, float)) and isinstance(b, (int, float))
+                                       and not isinstance(a, bool) and not isinstance(b, bool)):
+        return False
+    try:
+        return bool(np.array_equal(np.asarray(a, dtype=object), np.asarray(b, dtype=object)))
+    except Exception:  # noqa: BLE001 -- an uncomparable value is simply "not the default"
+        return False
