@@ -225,18 +225,30 @@ def solve_fixed(
                 att.decided_by = f"{solver}+refine"
             else:
                 att.messages.append(f"{solver} returned a point violating its own constraints")
-        if c is None and cross_check != "none":
-            c = _cross_check(A, cross_check)
-            att.qp_solves += 1
-            if c is not None:
-                att.decided_by = f"{solver}+{cross_check}"
-                if sol.status == "infeasible":
-                    att.disagreement = (
-                        f"{solver} reported infeasible, the {cross_check} check found a point"
-                    )
         if c is None:
-            att.status = "infeasible" if sol.status == "infeasible" else "failed"
+            # The chosen check first; when margins are tiny (delta < 1e-6) both, even
+            # with cross_check="none": a float QP misreads such margins as infeasible.
+            kinds = [] if cross_check == "none" else [cross_check]
+            if delta < 1e-6:
+                kinds += [k for k in ("orth", "lp") if k not in kinds]
+            for kind in kinds:
+                c = _cross_check(A, kind)
+                att.qp_solves += 1
+                if c is not None:
+                    c = c * float(np.max(b / (A @ c)))  # onto the QP's rows: A c >= b
+                    att.decided_by = f"{solver}+{kind}"
+                    if sol.status == "infeasible":
+                        att.disagreement = (
+                            f"{solver} reported infeasible, the {kind} check found a point"
+                        )
+                    break
+        if c is None:
+            # An unchecked "infeasible" is not believed: it would rule out splits.
+            believed = sol.status == "infeasible" and cross_check != "none"
+            att.status = "infeasible" if believed else "failed"
             att.messages.append(sol.message)
+            if sol.status == "infeasible" and not believed:
+                att.messages.append("solver reported infeasible; not cross-checked")
             if sol.status == "optimal":
                 att.raw_c = sol.x  # kept so the failure can be verified and shown
             att.active_set_size = int(idx.size)
@@ -288,30 +300,37 @@ def _positive(v: Array) -> bool:
 
 
 def _cross_check(A: Array, kind: str) -> Array | None:
-    """Look for c with A c > 0 in a second formulation; None if it finds none."""
+    """Look for c with A c > 0 in a second formulation; None if it finds none.
+
+    Columns are orthonormalised by an SVD of the row-normalised matrix, c = Z S^-1 u:
+    a feasible direction that A nearly annihilates (segments of relative width
+    1e-10 make the lo- and hi-rows of a point nearly opposite) has margins of
+    order one in u, where a solver working on A itself sees them at 1e-10."""
     norms = np.linalg.norm(A, axis=1)
-    An = A / norms[:, None]
+    An = A / np.where(norms > 0, norms, 1.0)[:, None]
     if An.shape[0] <= An.shape[1]:
         # No more rows than unknowns: with full row rank, A c = 1 has a solution.
         c, *_ = np.linalg.lstsq(An, np.ones(An.shape[0]), rcond=None)
-        c = c / norms.max()
-    elif kind == "orth":
-        # Orthonormal columns: the QP sees a perfectly conditioned matrix.
-        Q, R = np.linalg.qr(An)
-        if np.min(np.abs(np.diag(R))) <= 1e-14 * np.max(np.abs(np.diag(R))):
+    else:
+        W, s, Zt = np.linalg.svd(An, full_matrices=False)
+        keep = s > 1e-15 * s[0]
+        W, s, Zt = W[:, keep], s[keep], Zt[keep]
+        wn = np.linalg.norm(W, axis=1)
+        if kind == "orth":
+            sol = solve_qp(W, 1e-3 * wn, "quadprog")
+            u = sol.x
+        elif kind == "lp":
+            u = _lp_margin(W / np.where(wn > 0, wn, 1.0)[:, None])
+        else:  # pragma: no cover - validated by callers
+            raise ValueError(kind)
+        if u is None:
             return None
-        qn = np.linalg.norm(Q, axis=1)
-        sol = solve_qp(Q, 1e-3 * qn, "quadprog")
-        if sol.x is None:
-            return None
-        c = np.linalg.solve(R, sol.x)
-    elif kind == "lp":
-        c = _lp_margin(An)
-        if c is None:
-            return None
-    else:  # pragma: no cover - validated by callers
-        raise ValueError(kind)
-    return c if _positive(A @ c) else None
+        c = Zt.T @ (u / s)
+    if not np.all(np.isfinite(c)):
+        return None
+    c = c / np.abs(c).max() if np.any(c) else c
+    # The sign test in extended precision: c may be long in a nearly null direction.
+    return c if _positive(A.astype(np.longdouble) @ c.astype(np.longdouble)) else None
 
 
 def _lp_margin(An: Array) -> Array | None:
@@ -442,8 +461,16 @@ def denominator_weights(q0: Array | None, n_points: int) -> Array:
 
 
 def segment_scales(lo: Array, hi: Array) -> Array:
-    """s = max(|mid|, half-width): the per-point row scale of the weighted forms."""
-    return np.maximum(np.abs(0.5 * (lo + hi)), 0.5 * (hi - lo))
+    """s = max(|mid|, half-width, 1e-3 |mid| of the neighbours): the per-point row
+    scale of the weighted forms. Any s > 0 leaves the feasible set alone; the
+    neighbours' floor keeps a zero of y at a sample (s = half-width = 1e-10 there)
+    from outweighing every other point by 1e10 in the orthonormal bases."""
+    mid = np.abs(0.5 * (lo + hi))
+    s = np.maximum(mid, 0.5 * (hi - lo))
+    if mid.shape[0] > 2:
+        nb = np.maximum(np.concatenate([mid[1:2], mid[:-1]]), np.concatenate([mid[1:], mid[-2:-1]]))
+        s = np.maximum(s, 1e-3 * nb)
+    return s
 
 
 def sk_denominator(space: PolynomialSpace, seg: Segments, channel: int | Sequence[int],

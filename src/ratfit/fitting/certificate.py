@@ -41,7 +41,10 @@ __all__ = ["Certificate", "certify", "exact_check", "farkas_certificate"]
 
 Array = NDArray[np.float64]
 
-# A certificate is "checked" when no unit-norm c can have a normalised margin above this.
+# A certificate is "numerical" when no unit-norm c can have a normalised margin above
+# this in floating point. That is evidence, not a proof: data whose segments have a
+# relative width of 1e-10 have true margins of that size (a feasible size looks
+# infeasible at this tolerance). Only the exact check makes a certificate ``checked``.
 DEFAULT_TOL = 1e-9
 
 
@@ -57,7 +60,8 @@ class Certificate:
     ill-conditioned). ``exact`` is True when a nonnegative y on the same
     support annihilates both polynomial spaces exactly (rational arithmetic,
     monomial basis of the original variable), False when that failed, None
-    when not attempted.
+    when not attempted. ``checked`` (the certificate is a proof) is ``exact``;
+    ``numerical`` says only that the float residual is below the tolerance.
     """
 
     n: int
@@ -74,6 +78,7 @@ class Certificate:
     exact_note: str
     lp_status: str
     seconds: float
+    numerical: bool = False
 
     @property
     def margin_bound(self) -> float:
@@ -88,6 +93,8 @@ class Certificate:
             "m": self.m,
             "formulation": self.formulation,
             "checked": self.checked,
+            "proved": self.checked,
+            "numerical": self.numerical,
             "exact": self.exact,
             "exact_note": self.exact_note,
             "residual": _finite(self.residual),
@@ -105,14 +112,20 @@ class Certificate:
 
     def statement(self) -> str:
         if self.exact:
-            how = "proved in exact rational arithmetic"
-        elif self.checked:
-            how = f"checked numerically: no normalised margin above {self.residual:.1e}"
-        else:
-            how = f"NOT conclusive: residual {self.residual:.1e}"
+            return (
+                f"no rational with n <= {self.n}, m <= {self.m} coefficients passes strictly "
+                "inside every segment (proved in exact rational arithmetic on the data as "
+                f"stored; {len(self.points)} segments carry the proof)"
+            )
+        if self.numerical:
+            return (
+                f"numerically infeasible, not proved: in floating point no rational with "
+                f"n <= {self.n}, m <= {self.m} coefficients has a normalised margin above "
+                f"{self.residual:.1e} (exact check: {self.exact_note})"
+            )
         return (
-            f"no rational with n <= {self.n}, m <= {self.m} coefficients passes strictly "
-            f"inside every segment ({how}; {len(self.points)} segments carry the proof)"
+            f"not conclusive: the Farkas residual for n <= {self.n}, m <= {self.m} is "
+            f"{self.residual:.1e}"
         )
 
 
@@ -120,7 +133,7 @@ def _finite(v: float) -> float | None:
     return float(v) if np.isfinite(v) else None
 
 
-def farkas_lp(An: Array) -> tuple[Array | None, str]:
+def farkas_lp(An: Array, time_limit: float = 60.0) -> tuple[Array | None, str]:
     """y >= 0, sum y = 1 minimising ||An^T y||_inf (HiGHS). (None, status) on failure."""
     from scipy.optimize import linprog
     from scipy.sparse import csr_matrix, hstack, vstack
@@ -133,7 +146,8 @@ def farkas_lp(An: Array) -> tuple[Array | None, str]:
     cost = np.zeros(rows + 1)
     cost[-1] = 1.0
     res = linprog(cost, A_ub=a_ub, b_ub=np.zeros(2 * k), A_eq=a_eq, b_eq=[1.0],
-                  bounds=[(0, None)] * (rows + 1), method="highs")
+                  bounds=[(0, None)] * (rows + 1), method="highs",
+                  options={"time_limit": max(float(time_limit), 0.1)})
     if res.status != 0 or res.x is None:
         return None, str(res.message)
     y = np.clip(np.asarray(res.x[:rows]), 0.0, None)
@@ -170,11 +184,12 @@ def farkas_certificate(
     tol: float = DEFAULT_TOL,
     exact: bool | None = None,
     max_exact: int = 24,
+    time_limit: float = 60.0,
 ) -> Certificate:
     """A Gordan certificate for P(n, m) on ``system`` (ArnoldiSystem or the seed's
     ConstraintSystem). ``seg``/``channel`` give the raw data for the seed-row
     check and the exact confirmation (attempted when ``exact`` is True, or None
-    and n + m <= ``max_exact``)."""
+    and n + m <= ``max_exact``). ``time_limit`` bounds the LP (seconds)."""
     t0 = time.perf_counter()
     system.prepare(n, m)
     A = system.rows(n, m)
@@ -182,7 +197,7 @@ def farkas_certificate(
     norms = np.where(norms > 0, norms, 1.0)
     An = A / norms[:, None]
     npts = system.n_points
-    y, lp_status = farkas_lp(An)
+    y, lp_status = farkas_lp(An, time_limit)
     form = "arnoldi" if isinstance(system, ArnoldiSystem) else "basis"
     if y is None:
         return Certificate(n, m, form, An.shape[0], (), (), (), float("inf"), float("inf"),
@@ -209,14 +224,15 @@ def farkas_certificate(
     S = np.flatnonzero(w > 1e-15)
     points = tuple(int(v) for v in S % npts)
     sides = tuple(int(v) for v in S // npts)
-    checked = residual <= tol
+    numerical = residual <= tol
     ex: bool | None = None
     note = "not attempted"
-    if seg is not None and checked and (exact or (exact is None and n + m <= max_exact)):
+    if seg is not None and numerical and (exact or (exact is None and n + m <= max_exact)):
         ex, note = exact_check(system.space, seg, channel, n, m, points, sides, w[S])
     return Certificate(
         n, m, form, An.shape[0], points, sides, tuple(float(v) for v in w[S]), residual,
-        residual_seed, checked or bool(ex), ex, note, lp_status, time.perf_counter() - t0,
+        residual_seed, bool(ex), ex, note, lp_status, time.perf_counter() - t0,
+        numerical=numerical,
     )
 
 
@@ -330,23 +346,37 @@ def _nullspace(M: list[list[Fraction]], ncols: int) -> list[list[Fraction]]:
 _SEARCH_MAX_ROWS = 60_000
 
 
-def search_proof(run) -> dict | None:
+def search_proof(run, time_limit: float = 60.0) -> dict | None:
     """The certificate summary for the largest infeasible split a search tried
     (``run`` is a ``ratfit.fitting.search._Search``), or None when there is none or the
-    system is not one of the two standard formulations."""
+    system is not one of the two standard formulations. When the decisive formulation
+    gives no exact proof, the seed's basis form is tried too (its Farkas LP often
+    resolves what HiGHS cannot in the weighted form at widths of 1e-12). The LPs
+    share ``time_limit`` seconds."""
     if not run.infeasible:
         return None
+    t0 = time.perf_counter()
     n, m = max(run.infeasible, key=lambda s: (s[0] + s[1], s[1]))
     att = run.cache[(n, m)][0]
-    system = None
+    systems = []
     if att.formulation == "arnoldi":
-        system = run.f._split_system(run.space, run.seg, run.channel, n, m)
-    if system is None:
-        system = run.system
-    if type(system) not in (ConstraintSystem, ArnoldiSystem) or system.n_rows > _SEARCH_MAX_ROWS:
-        return None
-    try:
-        cert = farkas_certificate(system, n, m, seg=run.seg, channel=run.channel)
-    except (ValueError, np.linalg.LinAlgError):  # pragma: no cover - LP or SVD breakdown
-        return None
-    return cert.summary()
+        systems.append(run.f._split_system(run.space, run.seg, run.channel, n, m))
+    systems.append(run.system)
+    best = None
+    for system in systems:
+        left = time_limit - (time.perf_counter() - t0)
+        if system is None or left <= 0:
+            continue
+        if type(system) not in (ConstraintSystem, ArnoldiSystem) or \
+                system.n_rows > _SEARCH_MAX_ROWS:
+            continue
+        try:
+            cert = farkas_certificate(system, n, m, seg=run.seg, channel=run.channel,
+                                      time_limit=left)
+        except (ValueError, np.linalg.LinAlgError):  # pragma: no cover - LP or SVD breakdown
+            continue
+        if best is None or (cert.checked, cert.numerical) > (best.checked, best.numerical):
+            best = cert
+        if cert.checked:
+            break
+    return None if best is None else best.summary()

@@ -548,11 +548,16 @@ class _Search:
                 from ratfit.fitting.certificate import search_proof
 
                 proof = search_proof(self)
-                if proof is not None and proof["checked"]:
+                if proof is not None and proof["checked"]:  # exact: a proof
                     msg = (
                         f"{STATUS_MESSAGES[1]}: no rational of this size fits these "
                         f"segments (certificate: "
                         f"{proof['statement']}); every split of {span} was infeasible or failed"
+                    )
+                elif proof is not None and proof["numerical"]:
+                    msg = (
+                        f"{STATUS_MESSAGES[1]}: every split of {span} was infeasible or failed "
+                        f"({proof['statement']})"
                     )
                 else:
                     msg = (

@@ -1,0 +1,135 @@
+"""Sound answers: fits that exist are found, impossibility is claimed only when proved.
+
+Every case is checked in the test itself against exact rational arithmetic on the
+data as stored (floats are exact rationals), independently of ratfit's own code.
+"""
+
+from __future__ import annotations
+
+from fractions import Fraction
+
+import numpy as np
+import pytest
+
+from ratfit.core.segments import Segments
+from ratfit.fitting.certificate import certify
+from ratfit.fitting.search import RationalFitter
+
+
+def _inside_exactly(x, lo, hi, r) -> bool:
+    """lo_i < r(x_i) < hi_i for every i, in exact arithmetic (r maps Fraction -> Fraction)."""
+    return all(Fraction(float(a)) < r(Fraction(float(t))) < Fraction(float(b))
+               for t, a, b in zip(x, lo, hi, strict=True))
+
+
+def _exact_null_nonneg(rows: list[list[Fraction]]) -> bool:
+    """Is there z >= 0, z != 0 with sum_j z_j rows_j = 0 (Gauss-Jordan over Q)?"""
+    M = [list(col) for col in zip(*rows, strict=True)]  # k x s
+    s = len(rows)
+    piv_cols: list[int] = []
+    r = 0
+    for c in range(s):
+        p = next((i for i in range(r, len(M)) if M[i][c] != 0), None)
+        if p is None:
+            continue
+        M[r], M[p] = M[p], M[r]
+        M[r] = [v / M[r][c] for v in M[r]]
+        for i in range(len(M)):
+            if i != r and M[i][c] != 0:
+                f = M[i][c]
+                M[i] = [a - f * b for a, b in zip(M[i], M[r], strict=True)]
+        piv_cols.append(c)
+        r += 1
+    free = [c for c in range(s) if c not in piv_cols]
+    if len(free) != 1:  # a one-dimensional null space is what a Farkas support has
+        return False
+    z = [Fraction(0)] * s
+    z[free[0]] = Fraction(1)
+    for i, pc in enumerate(piv_cols):
+        z[pc] = -M[i][free[0]]
+    return all(v >= 0 for v in z) or all(v <= 0 for v in z)
+
+
+def _exact_rows(seg: Segments, cert: dict | object, n: int, m: int) -> list[list[Fraction]]:
+    pts = cert.points if hasattr(cert, "points") else cert["points"]
+    sides = cert.sides if hasattr(cert, "sides") else cert["sides"]
+    rows = []
+    for i, side in zip(pts, sides, strict=True):
+        side = side if isinstance(side, int) else int(side == "hi")
+        xi = Fraction(float(seg.x[i, 0]))
+        b = Fraction(float((seg.hi if side else seg.lo)[i, 0]))
+        mp = [xi**k for k in range(n)]
+        mq = [xi**k for k in range(m)]
+        sg = -1 if side else 1
+        rows.append([sg * v for v in mp] + [-sg * b * v for v in mq])
+    return rows
+
+
+def _rat33(t: Fraction) -> Fraction:
+    return (t + 1) * (t + 2) / ((t + 3) * (t + 4))
+
+
+@pytest.fixture(scope="module", params=[1e-10, 1e-12])
+def exact33(request) -> Segments:
+    """(x+1)(x+2)/((x+3)(x+4)) on 500 points of [-1, 1]: y = 0 at the sample x = -1."""
+    x = np.linspace(-1.0, 1.0, 500)
+    y = (x + 1) * (x + 2) / ((x + 3) * (x + 4))
+    return Segments.from_absolute(x, y, request.param * np.abs(y).max())
+
+
+def test_exact_rational_with_tiny_width_is_found(exact33: Segments) -> None:
+    seg = exact33
+    assert seg.y[0, 0] == 0.0
+    # (3, 3) fits: the rational itself lies strictly inside every segment, exactly.
+    assert _inside_exactly(seg.x[:, 0], seg.lo[:, 0], seg.hi[:, 0], _rat33)
+    fixed = RationalFitter(n=3, m=3).fit(seg).result_
+    assert fixed.success and fixed.infeasible_proof is None
+    res = RationalFitter().fit(seg).result_
+    assert res.success and res.n + res.m == 6
+    assert res.verification.max_violation == 0.0
+
+
+@pytest.mark.parametrize("cross_check", ["lp", "none"])
+def test_other_cross_checks_keep_the_tiny_width_fit(exact33: Segments, cross_check) -> None:
+    res = RationalFitter(cross_check=cross_check).fit(exact33).result_
+    assert res.success and res.n + res.m == 6
+
+
+def test_no_certificate_claims_a_feasible_size(exact33: Segments) -> None:
+    space = RationalFitter()._validate(exact33)
+    for form in ("arnoldi", "basis"):
+        cert = certify(space, exact33, 0, 3, 3, formulation=form)
+        assert not cert.checked
+        assert "no rational" not in cert.statement() or "not proved" in cert.statement()
+
+
+def test_smaller_totals_are_proved_infeasible_exactly(exact33: Segments) -> None:
+    """Total 5 is impossible; the proof is re-checked here in exact arithmetic."""
+    space = RationalFitter()._validate(exact33)
+    for n, m in ((2, 3), (3, 2)):
+        cert = certify(space, exact33, 0, n, m, formulation="basis")
+        assert cert.checked and cert.exact
+        assert _exact_null_nonneg(_exact_rows(exact33, cert, n, m))
+
+
+def test_search_that_fails_claims_impossibility_only_with_an_exact_proof(exact33) -> None:
+    res = RationalFitter(max_total=5).fit(exact33).result_
+    assert not res.success
+    proof = res.infeasible_proof
+    if "no rational of this size fits" in res.message:
+        assert proof is not None and proof["checked"] and proof["exact"]
+        n, m = proof["n"], proof["m"]
+        assert _exact_null_nonneg(_exact_rows(exact33, proof, n, m))
+    else:
+        assert "not proved" in res.message or "without a checked certificate" in res.message
+
+
+@pytest.mark.parametrize("cross_check", ["orth", "lp", "none"])
+def test_pole_near_the_interval_at_relative_1e8(cross_check: str) -> None:
+    """1/(1.1 + x): the fit (1, 2) exists at relative width 1e-8 (checked exactly)."""
+    x = np.linspace(-1.0, 1.0, 500)
+    y = 1.0 / (1.1 + x)
+    seg = Segments.from_relative(x, y, 1e-8)
+    assert _inside_exactly(x, seg.lo[:, 0], seg.hi[:, 0], lambda t: 1 / (Fraction(11, 10) + t))
+    res = RationalFitter(cross_check=cross_check, max_total=10).fit(seg).result_
+    assert res.success and (res.n, res.m) == (1, 2)
