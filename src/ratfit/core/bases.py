@@ -82,8 +82,13 @@ def get_family(name: str) -> Family:
         ) from None
 
 
-def multi_indices(dim: int, count: int, index_set: str = "total") -> NDArray[np.int64]:
+def multi_indices(dim: int, count: int, index_set: str = "total",
+                  max_degree: tuple[int, ...] | None = None) -> NDArray[np.int64]:
     """The first ``count`` multi-indices of ``dim`` variables in graded order.
+
+    ``max_degree`` (one cap per axis) leaves out every index above its cap:
+    what data with few distinct values per axis can determine
+    (:mod:`ratfit.core.columns`). The capped set stays downward closed.
 
     ``total``: by total degree |a|_1, then by descending power of x0 inside a
     shell, e.g. (1,0) before (0,1). ``tensor``: by max degree |a|_inf, then by
@@ -98,12 +103,30 @@ def multi_indices(dim: int, count: int, index_set: str = "total") -> NDArray[np.
         raise InputError(f"dimension must be >= 1, got {dim}")
     if count < 0:
         raise InputError(f"number of coefficients must be >= 0, got {count}")
+    caps = None if max_degree is None else tuple(int(v) for v in max_degree)
+    if caps is not None:
+        if len(caps) != dim or min(caps) < 0:
+            raise InputError(f"max_degree needs {dim} caps >= 0, got {max_degree!r}")
+        room = _capped_size(caps, index_set)
+        if count > room:
+            raise InputError(
+                f"{count} coefficients asked for, but the degree caps {list(caps)} (the "
+                f"data's distinct values per axis, minus one) allow only {room}"
+            )
     out: list[tuple[int, ...]] = []
     shell = 0
     while len(out) < count:
-        out.extend(_shell(dim, shell, index_set))
+        sh = _shell(dim, shell, index_set)
+        if caps is not None:
+            sh = [a for a in sh if all(v <= c for v, c in zip(a, caps, strict=True))]
+        out.extend(sh)
         shell += 1
     return np.array(out[:count], dtype=np.int64).reshape(count, dim)
+
+
+def _capped_size(caps: tuple[int, ...], index_set: str) -> int:
+    """Number of multi-indices under per-axis caps (both index sets reach the box)."""
+    return int(np.prod([c + 1 for c in caps], dtype=float)) if caps else 0
 
 
 def _shell(dim: int, s: int, index_set: str) -> list[tuple[int, ...]]:
@@ -125,9 +148,12 @@ class PolynomialSpace:
     family : "legendre", "chebyshev" or "monomial".
     domain : (d, 2) array of [min, max] per input dimension.
     index_set : "total" (graded by total degree) or "tensor" (by max degree).
+    max_degree : optional per-axis degree caps (see :func:`multi_indices`);
+        an axis capped at 0 is one the function does not depend on.
     """
 
-    def __init__(self, family: str, domain: ArrayLike, index_set: str = "total") -> None:
+    def __init__(self, family: str, domain: ArrayLike, index_set: str = "total",
+                 max_degree: tuple[int, ...] | None = None) -> None:
         self.family = get_family(family)
         dom = np.array(domain, dtype=float).reshape(-1, 2)
         if not np.all(np.isfinite(dom)):
@@ -144,6 +170,13 @@ class PolynomialSpace:
         self.domain = dom
         self.domain.setflags(write=False)
         self.index_set = index_set
+        if max_degree is not None:
+            max_degree = tuple(int(v) for v in max_degree)
+            if len(max_degree) != dom.shape[0] or min(max_degree) < 0:
+                raise InputError(
+                    f"max_degree needs {dom.shape[0]} caps >= 0, got {list(max_degree)}"
+                )
+        self.max_degree = max_degree
 
     # -- geometry -------------------------------------------------------------
     @property
@@ -173,7 +206,11 @@ class PolynomialSpace:
 
     # -- index sets and matrices ---------------------------------------------
     def indices(self, count: int) -> NDArray[np.int64]:
-        return multi_indices(self.dim, count, self.index_set)
+        return multi_indices(self.dim, count, self.index_set, self.max_degree)
+
+    def capacity(self) -> int | None:
+        """How many basis functions the caps allow (None: unbounded)."""
+        return None if self.max_degree is None else _capped_size(self.max_degree, self.index_set)
 
     def design(self, x: ArrayLike, count: int, *, window: bool = False) -> Array:
         """Matrix (N, count) of the first ``count`` basis functions at the points."""
@@ -211,16 +248,21 @@ class PolynomialSpace:
 
     # -- (de)serialisation ------------------------------------------------------
     def to_dict(self) -> dict:
-        return {
+        d = {
             "family": self.family.name,
             "dim": self.dim,
             "index_set": self.index_set,
             "domain": self.domain.tolist(),
         }
+        if self.max_degree is not None:
+            d["max_degree"] = list(self.max_degree)
+        return d
 
     @classmethod
     def from_dict(cls, d: dict) -> PolynomialSpace:
-        return cls(d["family"], d["domain"], d.get("index_set", "total"))
+        md = d.get("max_degree")
+        return cls(d["family"], d["domain"], d.get("index_set", "total"),
+                   None if md is None else tuple(md))
 
     def __eq__(self, other: object) -> bool:
         return (
@@ -228,13 +270,16 @@ class PolynomialSpace:
             and self.family.name == other.family.name
             and self.index_set == other.index_set
             and np.array_equal(self.domain, other.domain)
+            and self.max_degree == other.max_degree
         )
 
     def __hash__(self) -> int:
-        return hash((self.family.name, self.index_set, self.domain.tobytes()))
+        return hash((self.family.name, self.index_set, self.domain.tobytes(), self.max_degree))
 
     def __repr__(self) -> str:
         return (
             f"PolynomialSpace({self.family.name!r}, domain={self.domain.tolist()}, "
-            f"index_set={self.index_set!r})"
+            f"index_set={self.index_set!r}"
+            + (f", max_degree={list(self.max_degree)}" if self.max_degree is not None else "")
+            + ")"
         )

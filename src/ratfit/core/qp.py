@@ -137,9 +137,7 @@ class ConstraintSystem:
         assert R is not None and max(n, m) <= k, "call prepare() first"
         cols = np.r_[np.arange(n), k + np.arange(m)]
         s = np.linalg.svd(R[:, cols], compute_uv=False)
-        smax, smin = float(s[0]), float(s[-1])
-        delta = smin / smax if smax > 0 else 0.0
-        return delta, smin, smax
+        return _delta_from(s, (self.n_rows, cols.size))
 
     def spread_subset(self, size: int) -> NDArray[np.int64]:
         """``size`` points spread along the data, plus the extreme segments."""
@@ -273,6 +271,19 @@ def solve_fixed(
         att.active_set_size = int(idx.size)
     att.seconds = time.perf_counter() - t0
     return att
+
+
+def _delta_from(s: Array, shape: tuple[int, int]) -> tuple[float, float, float]:
+    """(delta, sigma_min, sigma_max) from the nonzero singular values: with
+    dependent columns (few distinct values per axis) the QP still only moves in
+    the row space, whose conditioning is what its margin must be scaled by."""
+    from ratfit.core.columns import nonzero_singular_values
+
+    nz = nonzero_singular_values(s, shape)
+    if nz.size == 0:
+        return 0.0, 0.0, 0.0
+    smax, smin = float(nz[0]), float(nz[-1])
+    return smin / smax, smin, smax
 
 
 def _refine(A: Array, b: Array, x: Array, steps: int = 3) -> Array | None:
@@ -412,7 +423,7 @@ class ArnoldiSystem(ConstraintSystem):
             block = self.rows(self.n, self.m, np.concatenate([rid, self.n_points + rid]))
             acc = np.linalg.qr(block if acc is None else np.vstack([acc, block]), mode="r")
         sv = np.linalg.svd(acc, compute_uv=False)
-        return (float(sv[-1] / sv[0]) if sv[0] > 0 else 0.0), float(sv[-1]), float(sv[0])
+        return _delta_from(sv, (self.n_rows, acc.shape[1]))
 
     def _check(self, n: int, m: int) -> None:
         if (n, m) != (self.n, self.m):

@@ -221,7 +221,11 @@ class RationalFitter(Estimator):
         if outside.any():
             i = int(np.argwhere(outside)[0][0])
             raise InputError(f"point {i} ({seg.x[i].tolist()}) lies outside the given domain")
-        return PolynomialSpace(self.basis, domain, self.index_set)
+        from ratfit.core.columns import axis_degree_caps
+
+        # n-D: no degree above what an axis's distinct values can carry (grids).
+        caps = axis_degree_caps(seg.x) if seg.dim > 1 else None
+        return PolynomialSpace(self.basis, domain, self.index_set, caps)
 
     # -- extension points (subclasses: monotone CDFs, other formulations) ------------
     def _make_system(self, space: PolynomialSpace, seg: Segments, j: int) -> ConstraintSystem:
