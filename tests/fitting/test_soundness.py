@@ -133,3 +133,57 @@ def test_pole_near_the_interval_at_relative_1e8(cross_check: str) -> None:
     assert _inside_exactly(x, seg.lo[:, 0], seg.hi[:, 0], lambda t: 1 / (Fraction(11, 10) + t))
     res = RationalFitter(cross_check=cross_check, max_total=10).fit(seg).result_
     assert res.success and (res.n, res.m) == (1, 2)
+
+
+# ---------------------------------------------------------------------------- scales
+@pytest.mark.parametrize("scale", [1e170, 1e300, 1e-155, 1e-300])
+def test_huge_and_tiny_values_fit_like_unit_ones(scale: float) -> None:
+    """S (x + 2) / (x + 3): total 4 at every scale S, checked exactly at the data."""
+    x = np.linspace(-1.0, 1.0, 200)
+    y = scale * (x + 2) / (x + 3)
+    seg = Segments.from_relative(x, y, 1e-6)
+    S = Fraction(scale)
+    assert _inside_exactly(x, seg.lo[:, 0], seg.hi[:, 0], lambda t: S * (t + 2) / (t + 3))
+    unit = RationalFitter(max_total=8).fit(Segments.from_relative(x, y / scale, 1e-6)).result_
+    res = RationalFitter(max_total=8).fit(seg).result_
+    assert unit.success and res.success
+    assert res.n + res.m == unit.n + unit.m == 4
+    r = res.rational(x)
+    assert np.all((seg.lo[:, 0] <= r) & (r <= seg.hi[:, 0]))
+    assert np.isfinite(res.verification.l2) and res.verification.max_rel_error <= 1e-6
+
+
+# ---------------------------------------------------------------------------- time
+def test_time_limit_stops_a_fruitless_search_without_a_claim() -> None:
+    rng = np.random.default_rng(3)
+    x = np.linspace(0.0, 1.0, 300)
+    y = 1.0 + rng.uniform(0, 1, x.size)  # noise: no small rational fits at 1e-3
+    seg = Segments.from_relative(x, y, 1e-3)
+    import time
+
+    t0 = time.perf_counter()
+    res = RationalFitter(time_limit=0.5).fit(seg).result_
+    secs = time.perf_counter() - t0
+    assert not res.success and res.status == 1
+    assert "time limit of 0.5 s reached" in res.message
+    assert "no rational of this size fits" not in res.message
+    assert secs < 10.0
+
+
+def test_ctrl_c_exits_130_without_a_fit_file(tmp_path, monkeypatch) -> None:
+    from click.testing import CliRunner
+
+    from ratfit.cli import main
+
+    data = tmp_path / "d.csv"
+    x = np.linspace(0.0, 1.0, 20)
+    np.savetxt(data, np.c_[x, 1 + x], delimiter=",", header="x,y", comments="")
+
+    def interrupted(self, seg):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(RationalFitter, "fit", interrupted)
+    out = tmp_path / "fit.json"
+    r = CliRunner().invoke(main, ["fit", str(data), "--dt", "0.1", "-o", str(out)])
+    assert r.exit_code == 130 and "interrupted" in r.output
+    assert not out.exists()

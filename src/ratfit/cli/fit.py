@@ -61,6 +61,9 @@ from ratfit.errors import RatfitError
 @click.option("--shared-denominator", "shared", is_flag=True,
               help="One q for every channel, one p per channel; minimises sum(n) + m "
                    "(--m fixes the denominator size).")
+@click.option("--time-limit", type=float, default=120.0, show_default=True,
+              help="Seconds per channel before the search stops with what it has "
+                   "(0: no limit).")
 @click.option("--json", "as_json", is_flag=True, help="Print one JSON object on stdout.")
 def fit_cmd(input_path: Path, output: Path | None, fmt: str | None, basis: str, index_set: str,
             dt: float | None, abs_width: float | None, n: int | None, m: int | None,
@@ -68,7 +71,7 @@ def fit_cmd(input_path: Path, output: Path | None, fmt: str | None, basis: str, 
             split_rule: str, solver: str, cross_check: str, jobs: int | None,
             formulation: str, domain: tuple[tuple[float, float], ...],
             channels: tuple[int, ...], monomial: bool, as_json: bool,
-            shared: bool = False) -> None:
+            shared: bool = False, time_limit: float = 120.0) -> None:
     """Fit INPUT (ALTA text data, CSV, .npz or NIST StRD) with the fewest coefficients."""
     from ratfit.fitting.search import RationalFitter
     from ratfit.io.data import read_data
@@ -77,6 +80,8 @@ def fit_cmd(input_path: Path, output: Path | None, fmt: str | None, basis: str, 
     if shared and (n is not None or total is not None):
         raise click.UsageError("--shared-denominator searches the numerator sizes itself: "
                                "drop --n/--total (--m fixes the shared denominator)")
+    if not time_limit >= 0:
+        raise click.UsageError(f"--time-limit must be >= 0 seconds, got {time_limit}")
     if (n is None) != (m is None) and not shared:
         raise click.UsageError("give both --n and --m, or neither")
     if n is not None and total is not None:
@@ -113,7 +118,7 @@ def fit_cmd(input_path: Path, output: Path | None, fmt: str | None, basis: str, 
                 basis=basis, index_set=index_set, n=n, m=m, total=total, min_total=min_total,
                 max_total=max_total, strategy=strategy, split_rule=split_rule, solver=solver,
                 cross_check=cross_check, jobs=jobs, callback=cb, domain=list(domain) or None,
-                formulation=formulation,
+                formulation=formulation, time_limit=time_limit if time_limit > 0 else None,
             ).fit(seg).results_
     finally:
         stop()

@@ -8,6 +8,8 @@ from __future__ import annotations
 import json
 import os
 import sys
+import threading
+import time
 import warnings
 from collections.abc import Callable
 from pathlib import Path
@@ -19,6 +21,9 @@ from ratfit.errors import RatfitError
 
 EXIT_NO_FIT = 1
 EXIT_BAD_INPUT = 2
+EXIT_INTERRUPTED = 130
+# Without a terminal, a progress line on stderr at most this often (seconds).
+PROGRESS_EVERY = 5.0
 
 
 class _Main(click.Group):
@@ -29,6 +34,15 @@ class _Main(click.Group):
             return super().invoke(ctx)
         except (click.exceptions.Exit, click.ClickException, click.Abort):
             raise
+        except KeyboardInterrupt:
+            # Ctrl-C: stop now. Fit files are written atomically at the end, so nothing
+            # partial is left; worker threads still inside a QP are not waited for.
+            click.echo("interrupted", err=True)
+            sys.stdout.flush()
+            sys.stderr.flush()
+            if threading.active_count() > 1 and sys.stdout is sys.__stdout__:
+                os._exit(EXIT_INTERRUPTED)  # a real process (not a test runner's streams)
+            ctx.exit(EXIT_INTERRUPTED)
         except BrokenPipeError:
             # The reader went away (``ratfit eval ... | head``): not an input error.
             # Point stdout at devnull so the interpreter's final flush stays quiet.
@@ -64,9 +78,23 @@ def main() -> None:
 
 # ---------------------------------------------------------------------------- helpers
 def _progress(enabled: bool) -> tuple[Callable | None, Callable[[], None]]:
-    """A rich status line on stderr while a search runs (terminals only)."""
-    if not enabled or not sys.stderr.isatty():
+    """A rich status line on stderr while a search runs; without a terminal, a
+    plain line every PROGRESS_EVERY seconds (logs of long runs show they move)."""
+    if not enabled:
         return None, lambda: None
+    if not sys.stderr.isatty():
+        t0 = time.monotonic()
+        state = {"qps": 0, "last": t0}
+
+        def line(att) -> None:
+            state["qps"] += 1
+            now = time.monotonic()
+            if now - state["last"] >= PROGRESS_EVERY:
+                state["last"] = now
+                click.echo(f"ratfit: {now - t0:.0f} s, tested {state['qps']} splits; last "
+                           f"(n={att.n}, m={att.m}): {att.status}", err=True)
+
+        return line, lambda: None
     from rich.console import Console
 
     status = Console(stderr=True).status("searching ...")

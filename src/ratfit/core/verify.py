@@ -81,10 +81,18 @@ def verify(rf: RationalFunction, seg: Segments, *, channel: int = 0) -> Verifica
         pole_locations=tuple(float(v) for v in poles),
         denominator_sign_changes=sign_change,
         linf=float(err.max()),
-        l2=float(np.sqrt(np.mean(err**2))),
+        l2=_rms(err),
         max_rel_error=float(relerr.max()) if relerr.size else 0.0,
         n_points=seg.n_points,
     )
+
+
+def _rms(err: NDArray[np.float64]) -> float:
+    """Root mean square without overflowing squares (values of 1e170 are data too)."""
+    top = float(np.max(err)) if err.size else 0.0
+    if not np.isfinite(top) or top == 0.0:
+        return top
+    return top * float(np.sqrt(np.mean((err / top) ** 2)))
 
 
 def pole_check(

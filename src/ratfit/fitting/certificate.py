@@ -344,6 +344,8 @@ def _nullspace(M: list[list[Fraction]], ncols: int) -> list[list[Fraction]]:
 
 # Above this many rows the LP is no longer cheap enough to run after every failed search.
 _SEARCH_MAX_ROWS = 60_000
+# Above this total the exact check is not attempted, so no search certificate is made.
+_SEARCH_MAX_EXACT = 24
 
 
 def search_proof(run, time_limit: float = 60.0) -> dict | None:
@@ -357,6 +359,8 @@ def search_proof(run, time_limit: float = 60.0) -> dict | None:
         return None
     t0 = time.perf_counter()
     n, m = max(run.infeasible, key=lambda s: (s[0] + s[1], s[1]))
+    if n + m > _SEARCH_MAX_EXACT:
+        return None  # no exact check at this size: the LP could not end in a proof
     att = run.cache[(n, m)][0]
     systems = []
     if att.formulation == "arnoldi":

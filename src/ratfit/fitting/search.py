@@ -26,6 +26,7 @@ total) run in a thread pool: the solvers release the GIL.
 
 from __future__ import annotations
 
+import dataclasses
 import os
 import time
 from collections.abc import Callable, Iterable
@@ -46,6 +47,7 @@ from ratfit.core.qp import (
 )
 from ratfit.core.rational import RationalFunction
 from ratfit.core.results import STATUS_MESSAGES, FitResult
+from ratfit.core.scaling import scale_segments, unscale_result, value_scales
 from ratfit.core.segments import Segments
 from ratfit.core.solvers import check_solver
 from ratfit.core.verify import Verification, verify
@@ -57,6 +59,9 @@ STRATEGIES = ("staircase", "exhaustive")
 FORMULATIONS = ("auto", "arnoldi", "basis")
 SPLIT_RULES = ("min-m", "error")
 DEFAULT_MAX_TOTAL = 100
+# Seconds a search may spend per channel before it stops with what it has (a
+# search that finds nothing otherwise walks every total up to max_total).
+DEFAULT_TIME_LIMIT = 120.0
 
 
 class RationalFitter(Estimator):
@@ -101,6 +106,10 @@ class RationalFitter(Estimator):
         orthonormal on the data, weighted by a denominator guess; finds the
         smallest fits), "basis" (the seed's matrix), "auto" (arnoldi in 1-D
         and for the total index set in n-D).
+    time_limit : float, optional, default 120
+        Seconds per channel; when they run out the search stops between splits
+        and says so (status 1, or the smallest verified fit so far flagged as
+        not proven minimal). None: no limit.
 
     Attributes
     ----------
@@ -146,6 +155,7 @@ class RationalFitter(Estimator):
         jobs: int | None = None,
         callback: Callable[[Attempt], None] | None = None,
         formulation: str = "auto",
+        time_limit: float | None = DEFAULT_TIME_LIMIT,
     ) -> None:
         self.basis = basis
         self.index_set = index_set
@@ -163,6 +173,7 @@ class RationalFitter(Estimator):
         self.jobs = jobs
         self.callback = callback
         self.formulation = formulation
+        self.time_limit = time_limit
 
     # -- validation -------------------------------------------------------------------
     def _validate(self, seg: Segments) -> PolynomialSpace:
@@ -201,6 +212,12 @@ class RationalFitter(Estimator):
             )
         if self.jobs is not None and (not _is_int(self.jobs) or self.jobs < 1):
             raise InputError(f"jobs must be an integer >= 1, got {self.jobs!r}")
+        if self.time_limit is not None and not (
+            isinstance(self.time_limit, (int, float, np.number))
+            and not isinstance(self.time_limit, bool) and float(self.time_limit) > 0
+        ):
+            raise InputError(f"time_limit must be a number of seconds > 0 or None, "
+                             f"got {self.time_limit!r}")
         zero = seg.hi == seg.lo
         if zero.any():
             i, j = (int(v) for v in np.argwhere(zero)[0])
@@ -263,8 +280,14 @@ class RationalFitter(Estimator):
         space = self._validate(segments)
         self.space_ = space
         self.segments_ = segments
+        # Values beyond ~1e150 or below ~1e-150 overflow the QP's squares: such
+        # channels are fitted scaled by a power of two (exact) and scaled back.
+        factors = value_scales(segments)
+        work = scale_segments(segments, factors)
+        results = [self._fit_channel(space, work, j) for j in range(segments.n_channels)]
         self.results_ = [
-            self._fit_channel(space, segments, j) for j in range(segments.n_channels)
+            unscale_result(r, segments, j, float(f), self._verify)
+            for j, (r, f) in enumerate(zip(results, factors, strict=True))
         ]
         return self
 
@@ -307,18 +330,26 @@ class RationalFitter(Estimator):
     def _fit_channel(self, space: PolynomialSpace, seg: Segments, j: int) -> FitResult:
         t0 = time.perf_counter()
         run = _Search(self, space, seg, j)
+        if self.time_limit is not None:
+            run.deadline = t0 + float(self.time_limit)
         if self.n is not None:
-            best = run.fixed(int(self.n), int(self.m))  # type: ignore[arg-type]
             lo_t = hi_t = int(self.n) + int(self.m)  # type: ignore[arg-type]
         elif self.total is not None:
             lo_t = hi_t = int(self.total)
-            best = run.all_splits(lo_t)
         else:
             lo_t = int(self.min_total)
             hi_t = int(self.max_total or DEFAULT_MAX_TOTAL)
-            best = run.exhaustive(lo_t, hi_t) if self.strategy == "exhaustive" else (
-                run.staircase(lo_t, hi_t)
-            )
+        try:
+            if self.n is not None:
+                best = run.fixed(int(self.n), int(self.m))  # type: ignore[arg-type]
+            elif self.total is not None:
+                best = run.all_splits(lo_t)
+            else:
+                best = run.exhaustive(lo_t, hi_t) if self.strategy == "exhaustive" else (
+                    run.staircase(lo_t, hi_t)
+                )
+        except _OutOfTime:
+            return run.timed_out(lo_t, hi_t, time.perf_counter() - t0)
         return run.result(best, lo_t, hi_t, time.perf_counter() - t0)
 
 
@@ -347,6 +378,7 @@ class _Search:
         self.infeasible: list[tuple[int, int]] = []
         self.jobs = int(fitter.jobs or os.cpu_count() or 1)
         self.active_set = fitter._resolved_active_set()
+        self.deadline: float | None = None
         # distinct points, from the system's sort order (np.unique on rows is slow)
         srt = self.system.t[self.system._order]
         self.cap = 1 + int(np.count_nonzero(np.any(srt[1:] != srt[:-1], axis=1)))
@@ -400,13 +432,18 @@ class _Search:
         todo = [s for s in splits if s not in self.cache]
         if not todo:
             return
+        if self.cache and self.deadline is not None and time.perf_counter() > self.deadline:
+            raise _OutOfTime
         n_max = max(s[0] for s in todo)
         m_max = max(s[1] for s in todo)
         if self.f._needs_shared_system(self.space, self.seg):
             self.system.prepare(n_max, m_max)
         if self._parallel() and len(todo) > 1:
-            with ThreadPoolExecutor(min(self.jobs, len(todo))) as ex:
+            ex = ThreadPoolExecutor(min(self.jobs, len(todo)))
+            try:
                 outs = list(ex.map(lambda s: self._run(*s), todo))
+            finally:  # on Ctrl-C, do not wait for QPs still running
+                ex.shutdown(wait=False, cancel_futures=True)
         else:
             outs = [self._run(*s) for s in todo]
         for s, out in zip(todo, outs, strict=True):
@@ -526,7 +563,8 @@ class _Search:
             return float(np.max(np.where(half > 0, np.abs(r - mid) / half, 0.0)))
 
     # -- the result ---------------------------------------------------------------------
-    def result(self, chosen: list[tuple[int, int]], lo: int, hi: int, secs: float) -> FitResult:
+    def result(self, chosen: list[tuple[int, int]], lo: int, hi: int, secs: float,
+               certify: bool = True) -> FitResult:
         history = tuple(c[0].summary() for c in self.cache.values())
         disagreements = tuple(
             f"({a.n},{a.m}): {a.disagreement}" for a, _, _ in self.cache.values() if a.disagreement
@@ -551,7 +589,9 @@ class _Search:
                 span = f"total {lo}" if lo == hi else f"totals {lo}..{hi}"
                 from ratfit.fitting.certificate import search_proof
 
-                proof = search_proof(self)
+                limit = self.f.time_limit
+                proof = search_proof(self, time_limit=60.0 if limit is None else
+                                     min(60.0, max(5.0, 0.25 * float(limit)))) if certify else None
                 if proof is not None and proof["checked"]:  # exact: a proof
                     msg = (
                         f"{STATUS_MESSAGES[1]}: no rational of this size fits these "
@@ -595,12 +635,33 @@ class _Search:
             infeasible_proof=proof if status == 1 else None,
         )
 
+    def timed_out(self, lo: int, hi: int, secs: float) -> FitResult:
+        """The result when the time budget ran out: the smallest verified fit so far
+        (not proven minimal), else status 1 without any claim of impossibility."""
+        limit = float(self.f.time_limit)  # type: ignore[arg-type]
+        good = sorted((s for s in self.cache if self.ok(s)), key=lambda s: (sum(s), s[1]))
+        tried = max((sum(s) for s in self.cache), default=lo)
+        note = (f"time limit of {limit:g} s reached after {len(self.cache)} split(s), "
+                f"totals {lo}..{tried} of {lo}..{hi}")
+        if good:
+            res = self.result(good[:1], lo, hi, secs)
+            return dataclasses.replace(
+                res, message=f"{res.message}; {note}: the total may not be minimal")
+        res = self.result([], lo, hi, secs, certify=False)
+        return dataclasses.replace(
+            res, message=f"{STATUS_MESSAGES[1]}: {note}; no verified fit found "
+                         "(not a proof that none exists; raise --time-limit)")
+
     def _closest(self) -> Candidate:
         """The best thing reached when nothing verified: smallest violation, else largest."""
         with_c = [c for c in self.cache.values() if c[2] is not None]
         if with_c:
             return min(with_c, key=lambda c: (c[2].max_violation_rel, c[0].total))  # type: ignore[union-attr]
         return max(self.cache.values(), key=lambda c: (c[0].total, c[0].m))
+
+
+class _OutOfTime(Exception):
+    """The search's time budget ran out (raised between splits)."""
 
 
 def _balanced(total: int) -> tuple[int, int]:
