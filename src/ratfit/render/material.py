@@ -1,0 +1,193 @@
+"""BRDF functions a renderer calls: a ratfit fit, measured data (interpolated), a model.
+
+Each is a callable ``f(L, V) -> (N, 3)`` (linear RGB, 1/sr) on unit directions
+in the surface frame (normal +z); both directions must be above the horizon
+(callers pass only such rows). Values are finite and non-negative: a fit that
+dips below zero between its samples is clamped to 0 at evaluation, and the
+fraction of clamped values is kept in ``negative_fraction`` (measured on the
+hemisphere grid at load time) so reports can say so.
+"""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from ratfit.brdf.albedo import hemisphere_quadrature
+from ratfit.brdf.fitter import BRDFFit, load_brdf_fit
+from ratfit.errors import InputError
+
+__all__ = ["AnalyticMaterial", "DataMaterial", "FitMaterial", "unit_rows"]
+
+Array = NDArray[np.float64]
+
+
+def unit_rows(d: ArrayLike) -> Array:
+    """(N, 3) float64 unit vectors with z >= 0 (rounding from float32 renderers removed)."""
+    a = np.atleast_2d(np.asarray(d, dtype=float)).copy()
+    a[:, 2] = np.maximum(a[:, 2], 0.0)
+    n = np.linalg.norm(a, axis=1)
+    return a / np.where(n > 0, n, 1.0)[:, None]
+
+
+def _rgb(v: Array, what: str) -> Array:
+    v = np.atleast_2d(np.asarray(v, dtype=float))
+    if v.shape[1] == 1:
+        v = np.repeat(v, 3, axis=1)
+    elif v.shape[1] != 3:
+        raise InputError(f"{what} has {v.shape[1]} channels; rendering needs 1 (grey) or 3 (RGB)")
+    return v
+
+
+def _negative_fraction(fn) -> float:
+    V, _ = hemisphere_quadrature(16, 32)
+    ti = np.radians(np.arange(2.5, 90.0, 5.0))
+    neg = tot = 0
+    for t in ti:
+        L = np.broadcast_to([np.sin(t), 0.0, np.cos(t)], V.shape).copy()
+        v = fn(L, V)
+        neg += int(np.sum(~(v >= 0)))
+        tot += v.size
+    return neg / tot
+
+
+class FitMaterial:
+    """A ratfit BRDF fit file (``ratfit brdf fit`` output), clamped at 0 for rendering."""
+
+    def __init__(self, fit: str | os.PathLike[str] | BRDFFit) -> None:
+        self.fit = fit if isinstance(fit, BRDFFit) else load_brdf_fit(fit)
+        self.name = Path(str(fit)).stem if not isinstance(fit, BRDFFit) else "fit"
+        from ratfit.brdf.parametrizations import get_parametrization
+
+        self.isotropic = get_parametrization(self.fit.parametrization).invariant != "full"
+        if self.fit.n_channels not in (1, 3):
+            raise InputError(f"the fit has {self.fit.n_channels} channels; rendering needs 1 "
+                             "(grey) or 3 (RGB): fit with --color rgb")
+        self.negative_fraction = _negative_fraction(self.raw)
+        V, _ = hemisphere_quadrature(16, 32)
+        L = np.broadcast_to([np.sin(0.6), 0.0, np.cos(0.6)], V.shape)
+        #: fraction of a hemisphere of directions (theta_l = 34 deg) outside the fit's box
+        self.outside_fraction = float(self.coords(L, V)[1].mean())
+
+    def coords(self, L: ArrayLike, V: ArrayLike) -> tuple[Array, NDArray[np.bool_]]:
+        """Fit coordinates of (L, V), moved into the fit's domain box by the symmetries of
+        a BRDF (reciprocity L <-> V; for non-full parametrizations also the mirror
+        y -> -y, which isotropy allows), then clipped to the box: a fit is not evaluated
+        outside the box it was fitted on. Also returns which rows needed the clip."""
+        from ratfit.brdf.parametrizations import get_parametrization
+
+        p = get_parametrization(self.fit.parametrization)
+        dom = np.asarray(self.fit.saved.space.domain, dtype=float)
+        Lu, Vu = unit_rows(L), unit_rows(V)
+        tol = 1e-9 * (1.0 + np.abs(dom).max())
+
+        def inside(c: Array) -> NDArray[np.bool_]:
+            return np.all((c >= dom[:, 0] - tol) & (c <= dom[:, 1] + tol), axis=1)
+
+        flip = np.array([1.0, -1.0, 1.0])
+        cands = [(Lu, Vu), (Vu, Lu)]
+        if p.invariant != "full":
+            cands += [(Lu * flip, Vu * flip), (Vu * flip, Lu * flip)]
+        with np.errstate(all="ignore"):
+            best = p.from_dirs(*cands[0])
+            ok = inside(best)
+            for a, b in cands[1:]:
+                if ok.all():
+                    break
+                c = p.from_dirs(a[~ok], b[~ok])
+                good = inside(c)
+                rows = np.flatnonzero(~ok)[good]
+                best[rows] = c[good]
+                ok[rows] = True
+        return np.clip(best, dom[:, 0], dom[:, 1]), ~ok
+
+    def raw(self, L: ArrayLike, V: ArrayLike) -> Array:
+        """The fit's own values (N, 3), negative or non-finite ones included."""
+        c, _ = self.coords(L, V)
+        with np.errstate(all="ignore"):
+            return _rgb(self.fit.eval_coords(c), "the fit")
+
+    def __call__(self, L: ArrayLike, V: ArrayLike) -> Array:
+        v = self.raw(L, V)
+        return np.where(np.isfinite(v), np.maximum(v, 0.0), 0.0)
+
+
+class DataMaterial:
+    """Measured BRDF samples, interpolated for rendering.
+
+    Isotropic coordinates (theta_l, theta_v, |delta_phi|) with every sample also
+    entered with L and V exchanged (reciprocity doubles the coverage);
+    piecewise-linear interpolation on their Delaunay tetrahedra (scipy), nearest
+    sample outside the convex hull. Above ``max_linear`` samples: nearest only.
+    """
+
+    def __init__(self, path: str | os.PathLike[str], *, max_linear: int = 200_000) -> None:
+        from scipy.interpolate import LinearNDInterpolator, NearestNDInterpolator
+
+        from ratfit.brdf.io import brdf_dataset
+        from ratfit.brdf.parametrizations import get_parametrization
+
+        ds = brdf_dataset(path, None, color="rgb")
+        if ds.y is None:
+            raise InputError(f"{path}: no BRDF values")
+        self.name = Path(str(path)).stem
+        param = str(ds.meta.get("param_in"))
+        p = get_parametrization(param)
+        if p.invariant not in ("full", "isotropic"):
+            raise InputError(f"{path}: data in {p.name} does not fix both directions up to a "
+                             "rotation; it cannot be rendered as measured")
+        L, V = p.to_dirs(ds.x)
+        y = _rgb(ds.y, f"{path}")
+        keep = np.all(np.isfinite(y), axis=1)
+        L, V, y = L[keep], V[keep], np.maximum(y[keep], 0.0)
+        if len(y) < 4:
+            raise InputError(f"{path}: fewer than 4 finite samples to interpolate")
+        pts = np.vstack([self._features(L, V), self._features(V, L)])
+        vals = np.vstack([y, y])
+        pts, idx = np.unique(np.round(pts, 9), axis=0, return_index=True)
+        vals = vals[idx]
+        self.n_samples = int(len(y))
+        self.isotropic = True
+        self._nearest = NearestNDInterpolator(pts, vals)
+        self._linear = LinearNDInterpolator(pts, vals) if len(pts) <= max_linear else None
+        self.negative_fraction = 0.0
+
+    @staticmethod
+    def _features(L: Array, V: Array) -> Array:
+        tl = np.arccos(np.clip(L[:, 2], -1.0, 1.0))
+        tv = np.arccos(np.clip(V[:, 2], -1.0, 1.0))
+        dphi = np.arctan2(L[:, 1], L[:, 0]) - np.arctan2(V[:, 1], V[:, 0])
+        dphi = np.abs(np.mod(dphi + np.pi, 2.0 * np.pi) - np.pi)
+        return np.stack([tl, tv, dphi], axis=1)
+
+    def __call__(self, L: ArrayLike, V: ArrayLike) -> Array:
+        q = self._features(unit_rows(L), unit_rows(V))
+        out = np.full((len(q), 3), np.nan)
+        if self._linear is not None:
+            out = self._linear(q)
+        miss = ~np.all(np.isfinite(out), axis=1)
+        if miss.any():
+            out[miss] = self._nearest(q[miss])
+        return np.maximum(out, 0.0)
+
+
+class AnalyticMaterial:
+    """An analytic model of :mod:`ratfit.brdf.analytic_models` (e.g. ``"lambert+ggx"``)."""
+
+    def __init__(self, spec: str, theta: ArrayLike, rgb: ArrayLike = (1.0, 1.0, 1.0)) -> None:
+        from ratfit.brdf.analytic_models import Model
+
+        self.model = Model(spec)
+        self.theta = np.asarray(theta, dtype=float)
+        self.model._split(self.theta)  # checks the parameter count
+        self.rgb = np.asarray(rgb, dtype=float)
+        self.name = self.model.spec
+        self.negative_fraction = 0.0
+        self.isotropic = True
+
+    def __call__(self, L: ArrayLike, V: ArrayLike) -> Array:
+        v = self.model(unit_rows(L), unit_rows(V), self.theta)
+        return np.where(np.isfinite(v), np.maximum(v, 0.0), 0.0)[:, None] * self.rgb[None, :]
