@@ -43,7 +43,6 @@ import csv
 import glob
 import hashlib
 import json
-import math
 import os
 import re
 import sys
@@ -59,6 +58,8 @@ from pathlib import Path
 from typing import Any
 
 from ratfit._atomic import atomic_open, atomic_path
+from ratfit.core.options import FIT_OPTIONS, SEGMENT_OPTIONS, check_fit_params
+from ratfit.core.validation import check_bool, check_choice, check_int, check_width
 from ratfit.errors import InputError, RatfitError
 
 __all__ = [
@@ -102,99 +103,49 @@ class BatchInterrupted(KeyboardInterrupt):
 
 
 # ---------------------------------------------------------------------------- settings
-_CHOICES: dict[str, tuple[str, ...]] = {}
-
-
-def _choices() -> dict[str, tuple[str, ...]]:
-    if not _CHOICES:
-        from ratfit.core.bases import FAMILIES, INDEX_SETS
-        from ratfit.core.qp import CROSS_CHECKS
-        from ratfit.core.solvers import SOLVERS
-        from ratfit.fitting.search import SPLIT_RULES, STRATEGIES
-        from ratfit.io.data import FORMATS
-
-        _CHOICES.update(
-            basis=tuple(FAMILIES), index_set=tuple(INDEX_SETS), strategy=STRATEGIES,
-            split_rule=SPLIT_RULES, cross_check=tuple(CROSS_CHECKS), solver=tuple(SOLVERS),
-            format=tuple(FORMATS),
-        )
-    return _CHOICES
-
-
-# Every setting with its built-in default. All but ``jobs`` enter the settings id
-# (``jobs`` changes how fast, not what). ``jobs`` defaults to 1: Dask supplies the
-# parallelism, threads inside each task would only oversubscribe the cores.
+# Every setting with its built-in default: the fitter's options from the one spec
+# (ratfit.core.options), the segment widths, and how an input is read. All but
+# ``jobs`` enter the settings id (``jobs`` changes how fast, not what). ``jobs``
+# defaults to 1: Dask supplies the parallelism, threads inside each task would
+# only oversubscribe the cores.
+FIT_PARAMS = tuple(k for k in FIT_OPTIONS if k != "callback")
 DEFAULTS: dict[str, Any] = {
-    "basis": "legendre", "index_set": "total", "domain": None, "n": None, "m": None,
-    "total": None, "min_total": 2, "max_total": None, "strategy": "staircase",
-    "split_rule": "min-m", "solver": "quadprog", "cross_check": "orth", "active_set": None,
-    "jobs": 1, "dt": None, "abs_width": None, "format": None, "dim": None, "monomial": True,
+    **{k: FIT_OPTIONS[k].default for k in FIT_PARAMS}, "jobs": 1,
+    **{k: o.default for k, o in SEGMENT_OPTIONS.items()},
+    "format": None, "dim": None, "monomial": True,
 }
-FIT_PARAMS = (
-    "basis", "index_set", "domain", "n", "m", "total", "min_total", "max_total", "strategy",
-    "split_rule", "solver", "cross_check", "active_set", "jobs",
-)
 _NOT_HASHED = ("jobs",)
-_INT_MIN = {"n": 1, "m": 1, "total": 2, "min_total": 2, "max_total": 2, "jobs": 1, "dim": 1}
+# Settings added after manifests were in use: left out of the settings id while they
+# hold their default, so results of earlier runs keep their ids (and are resumed).
+_HASHED_IF_SET = ("formulation", "time_limit")
 ENTRY_KEYS = ("path", "channels", "settings")
 TOP_KEYS = ("inputs", "defaults", "settings")
 
 
 def _check_setting(key: str, value: Any, where: str) -> Any:
     """One setting's value, normalised (floats as float), or InputError naming ``where``."""
-    bad = f"{where}: {key} must be"
-    choices = _choices()
-    if key in choices:
-        if key == "format" and value is None:
-            return None
-        if not isinstance(value, str) or value.lower() not in choices[key]:
-            raise InputError(f"{bad} one of {', '.join(choices[key])}, got {value!r}")
-        if key == "solver":
-            from ratfit.core.solvers import check_solver
+    if key in FIT_OPTIONS:
+        opt = FIT_OPTIONS[key]
+        if opt.kind == "choice" and isinstance(value, str):
+            value = value.lower()
+        if key in ("min_total", "jobs") and value is None:
+            raise InputError(f"{where}: {key} must be an integer >= {opt.minimum}, got None")
+        return opt.check(value, where)
+    if key in SEGMENT_OPTIONS:
+        return check_width(value, key, where=where, positive=True, below_one=key == "dt")
+    if key == "format":
+        from ratfit.io.data import FORMATS
 
-            try:
-                check_solver(value.lower())
-            except InputError as exc:
-                raise InputError(f"{where}: {exc}") from None
-        return value.lower()
-    if key in _INT_MIN:
-        if value is None and key not in ("min_total", "jobs"):
-            return None
-        if isinstance(value, bool) or not isinstance(value, int) or value < _INT_MIN[key]:
-            raise InputError(f"{bad} an integer >= {_INT_MIN[key]}, got {value!r}")
-        return value
-    if key in ("dt", "abs_width"):
         if value is None:
             return None
-        if (isinstance(value, bool) or not isinstance(value, (int, float))
-                or not math.isfinite(value) or value <= 0):
-            raise InputError(f"{bad} a finite number > 0, got {value!r}")
-        if key == "dt" and value >= 1:
-            raise InputError(f"{bad} < 1 (a relative width: [(1-dt) y, (1+dt) y]), got {value!r}")
-        return float(value)
+        if not isinstance(value, str):
+            raise InputError(f"{where}: format must be one of {', '.join(FORMATS)}, "
+                             f"got {value!r}")
+        return check_choice(value.lower(), "format", FORMATS, where=where)
+    if key == "dim":
+        return check_int(value, "dim", minimum=1, where=where, allow_none=True)
     if key == "monomial":
-        if not isinstance(value, bool):
-            raise InputError(f"{bad} true or false, got {value!r}")
-        return value
-    if key == "active_set":
-        if value is not None and not isinstance(value, bool):
-            raise InputError(f"{bad} true, false or absent (automatic), got {value!r}")
-        return value
-    if key == "domain":
-        if value is None:
-            return None
-        msg = f"{bad} a list of [lo, hi] pairs (one per input dimension), got {value!r}"
-        if not isinstance(value, list) or not value:
-            raise InputError(msg)
-        out = []
-        for pair in value:
-            if (not isinstance(pair, list) or len(pair) != 2
-                    or not all(isinstance(v, (int, float)) and not isinstance(v, bool)
-                               and math.isfinite(v) for v in pair)
-                    or not pair[0] < pair[1]):
-                raise InputError(msg)
-            out.append([float(pair[0]), float(pair[1])])
-        return out
+        return check_bool(value, "monomial", where=where)
     raise InputError(f"{where}: unknown key {key!r}")  # pragma: no cover (filtered before)
 
 
@@ -215,16 +166,8 @@ def _check_table(table: Any, where: str, allowed: tuple[str, ...]) -> dict[str, 
 
 
 def _check_combined(settings: dict[str, Any], where: str) -> None:
-    """Rules between settings (the same as ``ratfit fit``'s)."""
-    if (settings["n"] is None) != (settings["m"] is None):
-        raise InputError(f"{where}: give both n and m, or neither")
-    if settings["n"] is not None and settings["total"] is not None:
-        raise InputError(f"{where}: n/m and total are exclusive")
-    mx = settings["max_total"]
-    if mx is not None and mx < settings["min_total"]:
-        raise InputError(
-            f"{where}: max_total must be >= min_total={settings['min_total']}, got {mx}"
-        )
+    """Rules between settings (the same as the fitter's, from the one spec)."""
+    check_fit_params({k: settings[k] for k in FIT_PARAMS}, where=where)
 
 
 def _check_channels(value: Any, where: str) -> tuple[int | str, ...] | None:
@@ -244,7 +187,8 @@ def _check_channels(value: Any, where: str) -> tuple[int | str, ...] | None:
 
 def settings_id(settings: Mapping[str, Any]) -> str:
     """Short hash of the settings that change a result (stable across runs and machines)."""
-    keyed = {k: settings[k] for k in sorted(DEFAULTS) if k not in _NOT_HASHED}
+    keyed = {k: settings[k] for k in sorted(DEFAULTS) if k not in _NOT_HASHED
+             and not (k in _HASHED_IF_SET and settings[k] == DEFAULTS[k])}
     text = json.dumps(keyed, sort_keys=True, separators=(",", ":"))
     return hashlib.sha256(text.encode()).hexdigest()[:10]
 

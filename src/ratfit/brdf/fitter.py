@@ -29,6 +29,7 @@ from ratfit.core.bases import PolynomialSpace
 from ratfit.core.qp import ArnoldiSystem, ConstraintSystem
 from ratfit.core.rational import RationalFunction
 from ratfit.core.segments import Segments
+from ratfit.core.validation import check_width
 from ratfit.core.verify import Verification, verify
 from ratfit.errors import FileFormatError, InputError
 from ratfit.fitting.search import RationalFitter
@@ -87,21 +88,15 @@ def brdf_segments(
             raise InputError("cosine weighting and clamping need --dt/--abs-width segments")
         return ds.segments()
     y = prepare_values(ds, cosine=cosine, clamp=clamp)
-    for name, v in (("dt", dt), ("abs_width", abs_width), ("floor_rel", floor_rel)):
-        if v is not None and (not np.isfinite(v) or v < 0):
-            raise InputError(f"{name} must be a finite number >= 0, got {v!r}")
-    lo, hi = y.copy(), y.copy()
-    if dt is not None:
-        a, b = (1.0 - dt) * y, (1.0 + dt) * y
-        lo, hi = np.minimum(a, b), np.maximum(a, b)
-    w = np.zeros(y.shape[1])
-    if abs_width is not None:
-        w = np.maximum(w, abs_width)
-    if floor_rel is not None:
-        w = np.maximum(w, floor_rel * np.abs(y).max(axis=0))
-    lo = np.minimum(lo, y - w)
-    hi = np.maximum(hi, y + w)
-    return Segments(ds.x, lo, hi, y, ds.output_names)
+    floor_rel = check_width(floor_rel, "floor_rel")
+    w = None
+    if abs_width is not None or floor_rel is not None:
+        w = np.zeros(y.shape[1])
+        if abs_width is not None:
+            w = np.maximum(w, check_width(abs_width, "abs_width"))
+        if floor_rel is not None:
+            w = np.maximum(w, floor_rel * np.abs(y).max(axis=0))
+    return Segments.from_widths(ds.x, y, dt=dt, abs_width=w, names=ds.output_names)
 
 
 def fit_brdf(ds: Dataset, *, dt: float | None = None, abs_width: float | None = None,

@@ -8,13 +8,15 @@ from pathlib import Path
 import click
 
 from ratfit.cli.main import EXIT_NO_FIT, _write_json, main
+from ratfit.cli.options import aliased_option
 
 EXIT_INTERRUPTED = 130
 
 
 @main.command("batch")
 @click.argument("manifest", type=click.Path(dir_okay=False, path_type=Path))
-@click.option("-o", "--outdir", required=True, type=click.Path(file_okay=False, path_type=Path),
+@aliased_option("-o", "--output", "outdir", hidden=["--outdir"], required=True,
+                type=click.Path(file_okay=False, path_type=Path),
               help="Folder for the fit files and summary.csv / summary.parquet.")
 @click.option("--scheduler", metavar="ADDRESS",
               help="Address of a running Dask scheduler (default: start a local cluster).")

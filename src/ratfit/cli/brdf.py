@@ -10,6 +10,7 @@ import click
 import numpy as np
 
 from ratfit.cli.main import EXIT_NO_FIT, _fit_json, _print_report, _progress, _write_json, main
+from ratfit.cli.options import aliased_option, fit_options, pop_fit_params
 
 
 @main.group("brdf")
@@ -40,37 +41,26 @@ def _split_channels(values: tuple[str, ...]) -> list[str]:
 @click.option("--positive-q", is_flag=True,
               help="Constrain the denominator to be positive on a grid of the valid "
                    "configurations inside the QP (sparse or gappy measurements).")
-@click.option("--channels", "channels", multiple=True,
-              help="Channels to fit, by name or 0-based index (repeat or comma-separate).")
+@aliased_option("--channel", "channels", hidden=["--channels"], multiple=True,
+                help="Channels to fit, by name or 0-based index (repeat or comma-separate).")
 @click.option("--color", type=click.Choice(["rgb", "xyz", "spectral"]), default="rgb",
               show_default=True, help="Spectral (Cornell) data: CIE 1931 -> linear sRGB, XYZ, "
                                       "or the bands as they are.")
 @click.option("--max-points", type=int, help="Fit a random subset of this many samples.")
-@click.option("--basis", type=click.Choice(["legendre", "chebyshev", "monomial"]),
-              default="legendre", show_default=True)
-@click.option("--index-set", type=click.Choice(["total", "tensor"]), default="total",
-              show_default=True)
-@click.option("--n", "n", type=int, help="Numerator coefficients (fixes the split).")
-@click.option("--m", "m", type=int, help="Denominator coefficients (fixes the split).")
-@click.option("--total", type=int, help="Try every split of this total.")
-@click.option("--min-total", type=int, default=2, show_default=True)
-@click.option("--max-total", type=int, default=None, help="Default 100.")
-@click.option("--solver", default="quadprog", show_default=True)
-@click.option("--jobs", type=int, default=None, help="Threads for independent QPs.")
+@fit_options(exclude=("domain",))
 @click.option("--json", "as_json", is_flag=True, help="Print one JSON object on stdout.")
 def brdf_fit(input_path: Path, output: Path | None, fmt: str | None, param: str | None,
              dt: float | None, abs_width: float | None, floor_rel: float | None, cosine: bool,
              clamp: float | None, positive_q: bool, channels: tuple[str, ...], color: str,
-             max_points: int | None, basis: str, index_set: str, n: int | None, m: int | None,
-             total: int | None, min_total: int, max_total: int | None, solver: str,
-             jobs: int | None, as_json: bool) -> None:
+             max_points: int | None, as_json: bool, **options: Any) -> None:
     """Fit each channel of a measured BRDF with a verified rational function."""
     from ratfit.brdf.fitter import brdf_metrics, cos_theta_l, fit_brdf, save_brdf_fit
     from ratfit.brdf.io import brdf_dataset
     from ratfit.brdf.parametrizations import get_parametrization
     from ratfit.io.fitfile import file_sha256
 
-    if (n is None) != (m is None):
+    params = pop_fit_params(options)
+    if (params["n"] is None) != (params["m"] is None):
         raise click.UsageError("give both --n and --m, or neither")
     if max_points is not None and max_points < 2:
         raise click.UsageError("--max-points must be >= 2")
@@ -82,9 +72,7 @@ def brdf_fit(input_path: Path, output: Path | None, fmt: str | None, param: str 
     try:
         fitter, seg, meta = fit_brdf(
             ds, dt=dt, abs_width=abs_width, floor_rel=floor_rel, cosine=cosine, clamp=clamp,
-            positive_q=positive_q,
-            basis=basis, index_set=index_set, n=n, m=m, total=total, min_total=min_total,
-            max_total=max_total, solver=solver, jobs=jobs, callback=cb,
+            positive_q=positive_q, callback=cb, **params,
         )
     finally:
         stop()
@@ -105,7 +93,7 @@ def brdf_fit(input_path: Path, output: Path | None, fmt: str | None, param: str 
     if output is not None and ok:
         save_brdf_fit(output, results, meta, provenance={
             "input": str(input_path), "input_sha256": file_sha256(input_path),
-            "n_points": seg.n_points, "solver": solver,
+            "n_points": seg.n_points, "solver": params["solver"],
             "segments": {"dt": dt, "abs_width": abs_width, "floor_rel": floor_rel},
         })
     if as_json:

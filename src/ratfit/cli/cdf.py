@@ -21,6 +21,7 @@ import click
 import numpy as np
 
 from ratfit.cli.main import EXIT_NO_FIT, _fit_json, _progress, _write_json, demo_group, main
+from ratfit.cli.options import aliased_option, fit_options, pop_fit_params
 from ratfit.errors import FileFormatError, InputError, RatfitError
 
 SOURCES = ("pdf", "cdf", "samples")
@@ -126,32 +127,31 @@ def cdf_json(fitter, output: Path | None) -> dict[str, Any]:
               help="K extra monotone constraint points, uniform on the domain.")
 @click.option("--form", type=click.Choice(["two-row", "max"]), default="two-row",
               show_default=True, help="Derivative constraints: seed eq. 3 or eq. 5.")
-@click.option("--basis", type=click.Choice(["legendre", "chebyshev", "monomial"]),
-              default="legendre", show_default=True)
-@click.option("--n", "n", type=int, help="Numerator coefficients (fixes the split).")
-@click.option("--m", "m", type=int, help="Denominator coefficients (fixes the split).")
-@click.option("--max-total", type=int, default=None, help="Default 100.")
-@click.option("--domain", type=(float, float), default=None, metavar="LO HI",
-              help="Domain of the CDF (default: the data range).")
+@fit_options(exclude=("index_set", "formulation"),
+             helps={"domain": "Domain of the CDF, LO HI (default: the data range)."})
 @click.option("--channel", type=int, default=0, show_default=True,
               help="Column of a table with several output channels.")
-@click.option("--solver", default="quadprog", show_default=True)
 @click.option("--json", "as_json", is_flag=True, help="Print one JSON object on stdout.")
 def cdf_cmd(input_path: Path, output: Path | None, source: str | None, fmt: str | None,
             dt: float | None, abs_width: float | None, confidence: float, points: int,
-            grid: int, form: str, basis: str, n: int | None, m: int | None,
-            max_total: int | None, domain: tuple[float, float] | None, channel: int,
-            solver: str, as_json: bool) -> None:
+            grid: int, form: str, channel: int, as_json: bool, **options: Any) -> None:
     """Fit a monotone rational CDF to INPUT (a pdf table, a cdf table or samples)."""
     from ratfit.cdf.monotone import MonotoneFitter
     from ratfit.io.fitfile import file_sha256, fit_document, save_fit
 
-    if (n is None) != (m is None):
+    params = pop_fit_params(options)
+    if (params["n"] is None) != (params["m"] is None):
         raise click.UsageError("give both --n and --m, or neither")
     if source is None:
         source = "samples" if input_path.suffix.lower() == ".npy" else "pdf"
-    if domain is not None and not domain[1] > domain[0]:
-        raise InputError(f"zero-length or reversed domain {list(domain)}")
+    domain = None
+    if params["domain"] is not None:
+        if len(params["domain"]) != 1:
+            raise InputError(f"a CDF has one variable: give one --domain LO HI, got "
+                             f"{len(params['domain'])}")
+        domain = tuple(params["domain"][0])
+        if not domain[1] > domain[0]:
+            raise InputError(f"zero-length or reversed domain {list(domain)}")
     try:
         seg = _segments(input_path, source, fmt, dt, abs_width, confidence, points, channel,
                         domain)
@@ -159,9 +159,7 @@ def cdf_cmd(input_path: Path, output: Path | None, source: str | None, fmt: str 
         raise _with_source(exc, input_path) from None
     cb, stop = _progress(not as_json)
     try:
-        fitter = MonotoneFitter(form=form, grid=grid, basis=basis, n=n, m=m,
-                                max_total=max_total, solver=solver, callback=cb,
-                                domain=[list(domain)] if domain else None).fit(seg)
+        fitter = MonotoneFitter(form=form, grid=grid, callback=cb, **params).fit(seg)
     finally:
         stop()
     res = fitter.result_
@@ -172,7 +170,7 @@ def cdf_cmd(input_path: Path, output: Path | None, source: str | None, fmt: str 
         model = RationalCDF(res.rational)
         doc = fit_document(fitter.results_, provenance={
             "input": str(input_path), "input_sha256": file_sha256(input_path),
-            "n_points": seg.n_points, "solver": solver,
+            "n_points": seg.n_points, "solver": params["solver"],
             "cdf": {"from": source, "dt": dt, "abs_width": abs_width,
                     "confidence": confidence if source == "samples" else None,
                     "form": form, "grid": grid, "domain": [model.a, model.b],
@@ -270,9 +268,10 @@ def run_demo_cdf(outdir: Path, *, alpha: float = 0.3, samples: int = 100_000,
 
 
 @demo_group.command("cdf")
-@click.option("-o", "--outdir", type=click.Path(file_okay=False, path_type=Path),
-              default=Path("ratfit-cdf"), show_default=True,
-              help="Folder for the figure and the CDF fit file.")
+@aliased_option("-o", "--output", "outdir", hidden=["--outdir"],
+                type=click.Path(file_okay=False, path_type=Path),
+                default=Path("ratfit-cdf"), show_default=True,
+                help="Folder for the figure and the CDF fit file.")
 @click.option("--json", "as_json", is_flag=True, help="Print one JSON object on stdout.")
 def demo_cdf(outdir: Path, as_json: bool) -> None:
     """Fit the CDF of a Beckmann lobe (cos theta_h), sample it, plot pdf, histogram, CDF."""

@@ -8,18 +8,18 @@ from pathlib import Path
 import click
 
 from ratfit.cli.main import EXIT_NO_FIT, _write_json, demo_group
+from ratfit.cli.options import aliased_option, fit_options
 
 
 @demo_group.command("addendum")
-@click.option("-o", "--outdir", type=click.Path(file_okay=False, path_type=Path),
-              default=Path("ratfit-addendum"), show_default=True,
-              help="Folder for Figures 1-3 (PNG).")
-@click.option("--solver", default="quadprog", show_default=True,
-              help="QP solver (try clarabel: interior point, like the paper's Matlab).")
-@click.option("--cross-check", type=click.Choice(["orth", "lp", "none"]), default="orth",
-              show_default=True,
-              help="'none' shows what the solver alone returns (the paper's setting).")
-@click.option("--jobs", type=int, default=None)
+@aliased_option("-o", "--output", "outdir", hidden=["--outdir"],
+                type=click.Path(file_okay=False, path_type=Path),
+                default=Path("ratfit-addendum"), show_default=True,
+                help="Folder for Figures 1-3 (PNG).")
+@fit_options(only=("solver", "cross_check", "jobs"), helps={
+    "solver": "QP solver (try clarabel: interior point, like the paper's Matlab).",
+    "cross_check": "'none' shows what the solver alone returns (the paper's setting).",
+})
 @click.option("--json", "as_json", is_flag=True, help="Print one JSON object on stdout.")
 def demo_addendum(outdir: Path, solver: str, cross_check: str, jobs: int | None,
                   as_json: bool) -> None:

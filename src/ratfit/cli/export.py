@@ -8,6 +8,7 @@ from pathlib import Path
 import click
 
 from ratfit.cli.main import _write_json, main
+from ratfit.cli.options import aliased_option
 from ratfit.errors import InputError
 
 _FILE = click.Path(dir_okay=False, path_type=Path)
@@ -110,8 +111,9 @@ def plot_cmd(fit_path: Path, data_path: Path | None, kind: str, output: Path, ch
 @main.command("report")
 @click.argument("fit_path", metavar="FIT.json", type=_FILE)
 @click.option("--data", "data_path", type=_FILE, help="Data file the fit is compared with.")
-@click.option("-o", "--outdir", type=click.Path(file_okay=False, path_type=Path), required=True,
-              help="Folder for index.html and its pictures.")
+@aliased_option("-o", "--output", "outdir", hidden=["--outdir"], required=True,
+                type=click.Path(file_okay=False, path_type=Path),
+                help="Folder for index.html and its pictures.")
 @click.option("--model", "models", multiple=True,
               help="Analytic model(s) to compare with (BRDF fits; default lambert+ggx).")
 def report_cmd(fit_path: Path, data_path: Path | None, outdir: Path,

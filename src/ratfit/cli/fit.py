@@ -18,7 +18,9 @@ from ratfit.cli.main import (
     _write_json,
     main,
 )
+from ratfit.cli.options import fit_options, pop_fit_params, segment_options
 from ratfit.errors import RatfitError
+from ratfit.io.data import FORMATS
 
 
 # ---------------------------------------------------------------------------- fit
@@ -26,34 +28,11 @@ from ratfit.errors import RatfitError
 @click.argument("input_path", metavar="INPUT", type=click.Path(dir_okay=False, path_type=Path))
 @click.option("-o", "--output", type=click.Path(dir_okay=False, path_type=Path),
               help="Fit file to write (JSON); written only when every channel is verified.")
-@click.option("--format", "fmt", type=click.Choice(["alta", "csv", "npz", "nist"]),
+@click.option("--format", "fmt", type=click.Choice(FORMATS),
               help="Input format (default: from the file).")
-@click.option("--basis", type=click.Choice(["legendre", "chebyshev", "monomial"]),
-              default="legendre", show_default=True)
-@click.option("--index-set", type=click.Choice(["total", "tensor"]), default="total",
-              show_default=True, help="n-D graded order of basis functions.")
-@click.option("--dt", type=float, help="Relative segment width: [(1-dt) y, (1+dt) y].")
-@click.option("--abs-width", type=float, help="Absolute segment half-width: [y-w, y+w].")
-@click.option("--n", "n", type=int, help="Numerator coefficients (fixes the split).")
-@click.option("--m", "m", type=int, help="Denominator coefficients (fixes the split).")
-@click.option("--total", type=int, help="Try every split of this total.")
-@click.option("--min-total", type=int, default=2, show_default=True)
-@click.option("--max-total", type=int, default=None, help="Default 100.")
-@click.option("--strategy", type=click.Choice(["staircase", "exhaustive"]), default="staircase",
-              show_default=True)
-@click.option("--split-rule", type=click.Choice(["min-m", "error"]), default="min-m",
-              show_default=True, help="Which feasible split of the minimal total to keep.")
-@click.option("--solver", default="quadprog", show_default=True,
-              help="QP solver: quadprog, daqp, clarabel.")
-@click.option("--cross-check", type=click.Choice(["orth", "lp", "none"]), default="orth",
-              show_default=True, help="How a solver's 'infeasible' is checked.")
-@click.option("--jobs", type=int, default=None, help="Threads for independent QPs.")
-@click.option("--formulation", type=click.Choice(["auto", "arnoldi", "basis"]), default="auto",
-              show_default=True,
-              help="arnoldi: data-orthonormal bases (smallest fits); basis: the seed's matrix.")
-@click.option("--domain", "domain", type=(float, float), multiple=True, metavar="LO HI",
-              help="Bounds mapped to [-1, 1], one per input dimension, in order "
-                   "(default: the data bounds).")
+@segment_options()
+@fit_options(helps={"max_total": "Largest total n + m searched (default 100; with "
+                                 "--shared-denominator: the largest numerator, default 60)."})
 @click.option("--channel", "channels", multiple=True, type=int,
               help="Fit only these channels (0-based; repeatable).")
 @click.option("--monomial/--no-monomial", default=True, show_default=True,
@@ -61,27 +40,30 @@ from ratfit.errors import RatfitError
 @click.option("--shared-denominator", "shared", is_flag=True,
               help="One q for every channel, one p per channel; minimises sum(n) + m "
                    "(--m fixes the denominator size).")
-@click.option("--time-limit", type=float, default=120.0, show_default=True,
-              help="Seconds per channel before the search stops with what it has "
-                   "(0: no limit).")
 @click.option("--json", "as_json", is_flag=True, help="Print one JSON object on stdout.")
-def fit_cmd(input_path: Path, output: Path | None, fmt: str | None, basis: str, index_set: str,
-            dt: float | None, abs_width: float | None, n: int | None, m: int | None,
-            total: int | None, min_total: int, max_total: int | None, strategy: str,
-            split_rule: str, solver: str, cross_check: str, jobs: int | None,
-            formulation: str, domain: tuple[tuple[float, float], ...],
-            channels: tuple[int, ...], monomial: bool, as_json: bool,
-            shared: bool = False, time_limit: float = 120.0) -> None:
-    """Fit INPUT (ALTA text data, CSV, .npz or NIST StRD) with the fewest coefficients."""
+def fit_cmd(input_path: Path, output: Path | None, fmt: str | None, dt: float | None,
+            abs_width: float | None, channels: tuple[int, ...], monomial: bool, as_json: bool,
+            shared: bool = False, **options: Any) -> None:
+    """Fit INPUT (ALTA text data, CSV, .npz or NIST StRD) with the fewest coefficients.
+
+    Each channel gets its own n, m. Segments: --dt and/or --abs-width around the
+    file's y values, else the file's own intervals.
+
+    Exit codes: 0 every channel has a verified fit; 1 the search found no
+    verified fit (no fit file is written); 2 bad input or usage (one error line).
+    """
     from ratfit.fitting.search import RationalFitter
     from ratfit.io.data import read_data
     from ratfit.io.fitfile import file_sha256, fit_document, save_fit
 
+    time_limit = options["time_limit"]
+    if not time_limit >= 0:
+        raise click.UsageError(f"--time-limit must be >= 0 seconds, got {time_limit}")
+    params = pop_fit_params(options)
+    n, m, total = params["n"], params["m"], params["total"]
     if shared and (n is not None or total is not None):
         raise click.UsageError("--shared-denominator searches the numerator sizes itself: "
                                "drop --n/--total (--m fixes the shared denominator)")
-    if not time_limit >= 0:
-        raise click.UsageError(f"--time-limit must be >= 0 seconds, got {time_limit}")
     if (n is None) != (m is None) and not shared:
         raise click.UsageError("give both --n and --m, or neither")
     if n is not None and total is not None:
@@ -108,18 +90,13 @@ def fit_cmd(input_path: Path, output: Path | None, fmt: str | None, basis: str, 
             from ratfit.fitting.shared_denominator import SharedDenominatorFitter
 
             shared_fit = SharedDenominatorFitter(
-                basis=basis, index_set=index_set, domain=list(domain) or None, m=m,
-                max_n=max_total or 60, solver=solver, cross_check=cross_check, jobs=jobs or 1,
-                callback=cb,
+                basis=params["basis"], index_set=params["index_set"], domain=params["domain"],
+                m=m, max_n=params["max_total"] or 60, solver=params["solver"],
+                cross_check=params["cross_check"], jobs=params["jobs"] or 1, callback=cb,
             ).fit(seg).result_
             results = shared_fit.results
         else:
-            results = RationalFitter(
-                basis=basis, index_set=index_set, n=n, m=m, total=total, min_total=min_total,
-                max_total=max_total, strategy=strategy, split_rule=split_rule, solver=solver,
-                cross_check=cross_check, jobs=jobs, callback=cb, domain=list(domain) or None,
-                formulation=formulation, time_limit=time_limit if time_limit > 0 else None,
-            ).fit(seg).results_
+            results = RationalFitter(**params, callback=cb).fit(seg).results_
     finally:
         stop()
     ok = all(r.success for r in results)
@@ -129,7 +106,7 @@ def fit_cmd(input_path: Path, output: Path | None, fmt: str | None, basis: str, 
                                    "explicit": dt is None and abs_width is None}
         doc = fit_document(results, monomial=mono, provenance={
             "input": str(input_path), "input_sha256": file_sha256(input_path),
-            "n_points": seg.n_points, "segments": segdesc, "solver": solver,
+            "n_points": seg.n_points, "segments": segdesc, "solver": params["solver"],
         })
         save_fit(output, doc)
     if as_json:
@@ -156,7 +133,7 @@ def fit_cmd(input_path: Path, output: Path | None, fmt: str | None, basis: str, 
 @click.argument("input_path", metavar="INPUT", type=click.Path(dir_okay=False, path_type=Path))
 @click.option("-o", "--output", type=click.Path(dir_okay=False, path_type=Path),
               help="Write values to .csv or .npy (default: CSV on stdout).")
-@click.option("--format", "fmt", type=click.Choice(["alta", "csv", "npz", "nist"]))
+@click.option("--format", "fmt", type=click.Choice(FORMATS))
 def eval_cmd(fit_path: Path, input_path: Path, output: Path | None, fmt: str | None) -> None:
     """Values of a saved fit at the points of INPUT."""
     from ratfit._atomic import atomic_open

@@ -9,31 +9,32 @@ from typing import Any
 import click
 
 from ratfit.cli.main import EXIT_NO_FIT, _fit_json, _fmt, _write_json, main
+from ratfit.cli.options import fit_options, pop_fit_params
+from ratfit.io.data import FORMATS
 
 
 @main.command("tolerance")
 @click.argument("input_path", metavar="INPUT", type=click.Path(dir_okay=False, path_type=Path))
-@click.option("--n", "n", type=click.IntRange(min=1), required=True,
-              help="Numerator coefficients.")
-@click.option("--m", "m", type=click.IntRange(min=1), required=True,
-              help="Denominator coefficients.")
-@click.option("--absolute", is_flag=True,
-              help="Absolute width [y-w, y+w] (as --abs-width) instead of relative "
-                   "[(1-w) y, (1+w) y] (as --dt).")
+@fit_options(only=("n", "m"), required=("n", "m"),
+             helps={"n": "Numerator coefficients.", "m": "Denominator coefficients."})
+@click.option("--width-kind", type=click.Choice(["relative", "absolute"]), default="relative",
+              show_default=True,
+              help="Search a relative width [(1-w) y, (1+w) y] (as fit --dt) or an absolute "
+                   "one [y-w, y+w] (as fit --abs-width).")
+@click.option("--absolute", "absolute_flag", is_flag=True, hidden=True,
+              help="Old spelling of --width-kind absolute.")
 @click.option("--rtol", type=click.FloatRange(min=0, max=1, min_open=True, max_open=True),
               default=1e-3, show_default=True,
               help="Stop when the feasible width is within this ratio of an infeasible one.")
-@click.option("--format", "fmt", type=click.Choice(["alta", "csv", "npz", "nist"]),
+@click.option("--format", "fmt", type=click.Choice(FORMATS),
               help="Input format (default: from the file).")
-@click.option("--basis", type=click.Choice(["legendre", "chebyshev", "monomial"]),
-              default="legendre", show_default=True)
-@click.option("--solver", default="quadprog", show_default=True)
+@fit_options(only=("basis", "solver"))
 @click.option("--channel", "channels", multiple=True, type=int,
               help="Only these channels (0-based; repeatable).")
 @click.option("--json", "as_json", is_flag=True, help="Print one JSON object on stdout.")
-def tolerance_cmd(input_path: Path, n: int, m: int, absolute: bool, rtol: float,
-                  fmt: str | None, basis: str, solver: str, channels: tuple[int, ...],
-                  as_json: bool) -> None:
+def tolerance_cmd(input_path: Path, width_kind: str, absolute_flag: bool, rtol: float,
+                  fmt: str | None, channels: tuple[int, ...], as_json: bool,
+                  **options: Any) -> None:
     """Smallest width at which a rational of size (n, m) fits INPUT's y values.
 
     Intervals in the file are ignored: segments are built from y with the
@@ -45,6 +46,9 @@ def tolerance_cmd(input_path: Path, n: int, m: int, absolute: bool, rtol: float,
     from ratfit.fitting.tolerance import best_width
     from ratfit.io.data import read_data
 
+    params = pop_fit_params(options)
+    n, m, basis, solver = params["n"], params["m"], params["basis"], params["solver"]
+    absolute = absolute_flag or width_kind == "absolute"
     data = read_data(input_path, fmt=fmt)
     if data.y is None:
         raise InputError(f"{input_path} has only lo/hi bounds, no y values to fit")

@@ -11,59 +11,11 @@ from dataclasses import dataclass, field
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from ratfit.core.validation import check_finite as _check_finite  # noqa: F401
+from ratfit.core.validation import check_order, check_points, check_values, check_width
 from ratfit.errors import InputError
 
 __all__ = ["Segments", "check_points", "check_values"]
-
-
-def check_points(x: ArrayLike, name: str = "x") -> NDArray[np.float64]:
-    """Return x as a finite (N, d) float array or raise InputError naming it."""
-    try:
-        arr = np.asarray(x, dtype=float)
-    except (TypeError, ValueError) as exc:
-        raise InputError(f"{name} must be numeric: {exc}") from None
-    if arr.ndim == 1:
-        arr = arr[:, None]
-    if arr.ndim != 2:
-        raise InputError(f"{name} must be 1-D or 2-D (points x dims), got shape {arr.shape}")
-    if arr.shape[0] == 0:
-        raise InputError(f"{name} is empty: no data points to fit")
-    if arr.shape[1] == 0:
-        raise InputError(f"{name} has no dimensions (shape {arr.shape})")
-    _check_finite(arr, name)
-    return arr
-
-
-def check_values(v: ArrayLike, n_points: int, name: str) -> NDArray[np.float64]:
-    """Return v as a finite (N, k) float array with N == n_points."""
-    try:
-        arr = np.asarray(v, dtype=float)
-    except (TypeError, ValueError) as exc:
-        raise InputError(f"{name} must be numeric: {exc}") from None
-    if arr.ndim == 0:
-        raise InputError(f"{name} must be an array, got a scalar")
-    if arr.ndim == 1:
-        arr = arr[:, None]
-    if arr.ndim != 2:
-        raise InputError(f"{name} must be 1-D or 2-D (points x channels), got shape {arr.shape}")
-    if arr.shape[0] != n_points:
-        raise InputError(
-            f"mismatched lengths: x has {n_points} points but {name} has {arr.shape[0]}"
-        )
-    if arr.shape[1] == 0:
-        raise InputError(f"{name} has no channels (shape {arr.shape})")
-    _check_finite(arr, name)
-    return arr
-
-
-def _check_finite(arr: NDArray[np.float64], name: str) -> None:
-    bad = ~np.isfinite(arr)
-    if bad.any():
-        row = int(np.argwhere(bad)[0][0])
-        kind = "NaN" if np.isnan(arr[bad]).any() else "inf"
-        raise InputError(
-            f"{name} contains {int(bad.sum())} non-finite value(s) ({kind}); first at row {row}"
-        )
 
 
 @dataclass(frozen=True)
@@ -85,15 +37,7 @@ class Segments:
         x = check_points(self.x, "x")
         lo = check_values(self.lo, x.shape[0], "lo")
         hi = check_values(self.hi, x.shape[0], "hi")
-        if lo.shape != hi.shape:
-            raise InputError(f"lo has shape {lo.shape} but hi has shape {hi.shape}")
-        bad = lo > hi
-        if bad.any():
-            i, j = (int(v) for v in np.argwhere(bad)[0])
-            raise InputError(
-                f"lo > hi in {int(bad.sum())} segment(s); first at row {i}, channel {j}: "
-                f"lo={lo[i, j]!r} > hi={hi[i, j]!r}"
-            )
+        check_order(lo, hi)
         y = None if self.y is None else check_values(self.y, x.shape[0], "y")
         if y is not None and y.shape != lo.shape:
             raise InputError(f"y has shape {y.shape} but the bounds have shape {lo.shape}")
@@ -116,19 +60,64 @@ class Segments:
     @classmethod
     def from_relative(cls, x: ArrayLike, y: ArrayLike, dt: float, **kw) -> Segments:
         """lo = (1 - dt) y, hi = (1 + dt) y (ordered, so negative y works too)."""
-        dt = _check_width(dt, "dt")
-        xa = check_points(x)
-        ya = check_values(y, xa.shape[0], "y")
-        a, b = (1.0 - dt) * ya, (1.0 + dt) * ya
-        return cls(xa, np.minimum(a, b), np.maximum(a, b), ya, **kw)
+        return cls.from_widths(x, y, dt=_check_width(dt, "dt"), **kw)
 
     @classmethod
     def from_absolute(cls, x: ArrayLike, y: ArrayLike, width: float, **kw) -> Segments:
         """lo = y - width, hi = y + width."""
-        width = _check_width(width, "abs_width")
+        return cls.from_widths(x, y, abs_width=_check_width(width, "abs_width"), **kw)
+
+    @classmethod
+    def from_widths(cls, x: ArrayLike, y: ArrayLike, *, dt: float | None = None,
+                    abs_width: float | ArrayLike | None = None, **kw) -> Segments:
+        """The one segment builder: [(1-dt) y, (1+dt) y] joined with [y - w, y + w].
+
+        With both widths each segment is the union of the two intervals, so
+        values near zero keep a usable absolute tolerance. ``abs_width`` may
+        give one width per channel (shape (k,)).
+
+        Parameters
+        ----------
+        x : array-like of shape (N,) or (N, d)
+        y : array-like of shape (N,) or (N, k)
+        dt : float, optional
+            Relative half-width, finite and >= 0.
+        abs_width : float or array-like of shape (k,), optional
+            Absolute half-width(s), finite and >= 0.
+        **kw
+            ``names`` of the channels.
+
+        Returns
+        -------
+        Segments
+
+        Examples
+        --------
+        >>> s = Segments.from_widths([0, 1, 2], [0.0, 1.0, 10.0], dt=0.1, abs_width=0.5)
+        >>> s.lo[:, 0].tolist(), s.hi[:, 0].tolist()
+        ([-0.5, 0.5, 9.0], [0.5, 1.5, 11.0])
+        """
+        if dt is None and abs_width is None:
+            raise InputError("give a relative width (dt) or an absolute one (abs_width)")
         xa = check_points(x)
         ya = check_values(y, xa.shape[0], "y")
-        return cls(xa, ya - width, ya + width, ya, **kw)
+        lo, hi = ya.copy(), ya.copy()
+        if dt is not None:
+            rel = _check_width(dt, "dt")
+            a, b = (1.0 - rel) * ya, (1.0 + rel) * ya
+            lo, hi = np.minimum(a, b), np.maximum(a, b)
+        if abs_width is not None:
+            w = np.asarray(abs_width, dtype=float)
+            if w.ndim > 1 or (w.ndim == 1 and w.size != ya.shape[1]):
+                raise InputError(f"abs_width: one width or one per channel ({ya.shape[1]}), "
+                                 f"got shape {w.shape}")
+            for v in np.atleast_1d(w):
+                _check_width(float(v), "abs_width")
+            if dt is None:
+                lo, hi = ya - w, ya + w
+            else:
+                lo, hi = np.minimum(lo, ya - w), np.maximum(hi, ya + w)
+        return cls(xa, lo, hi, ya, **kw)
 
     @classmethod
     def from_bounds(
@@ -167,10 +156,6 @@ class Segments:
 
 
 def _check_width(w: float, name: str) -> float:
-    try:
-        w = float(w)
-    except (TypeError, ValueError):
-        raise InputError(f"{name} must be a number, got {w!r}") from None
-    if not np.isfinite(w) or w < 0:
-        raise InputError(f"{name} must be a finite number >= 0, got {w!r}")
-    return w
+    out = check_width(w, name, allow_none=False)
+    assert out is not None
+    return out

@@ -35,10 +35,18 @@ from concurrent.futures import ThreadPoolExecutor
 import numpy as np
 from numpy.typing import ArrayLike
 
-from ratfit.core.bases import INDEX_SETS, PolynomialSpace, get_family
+from ratfit.core.bases import PolynomialSpace
 from ratfit.core.estimator import Estimator
+from ratfit.core.options import (  # noqa: F401  (re-exported: where they used to live)
+    DEFAULT_MAX_TOTAL,
+    DEFAULT_TIME_LIMIT,
+    FIT_OPTIONS,
+    FORMULATIONS,
+    SPLIT_RULES,
+    STRATEGIES,
+    check_fit_params,
+)
 from ratfit.core.qp import (
-    CROSS_CHECKS,
     ArnoldiSystem,
     Attempt,
     ConstraintSystem,
@@ -49,19 +57,11 @@ from ratfit.core.rational import RationalFunction
 from ratfit.core.results import STATUS_MESSAGES, FitResult
 from ratfit.core.scaling import scale_segments, unscale_result, value_scales
 from ratfit.core.segments import Segments
-from ratfit.core.solvers import check_solver
 from ratfit.core.verify import Verification, verify
 from ratfit.errors import InputError
 
 __all__ = ["RationalFitter", "fit"]
 
-STRATEGIES = ("staircase", "exhaustive")
-FORMULATIONS = ("auto", "arnoldi", "basis")
-SPLIT_RULES = ("min-m", "error")
-DEFAULT_MAX_TOTAL = 100
-# Seconds a search may spend per channel before it stops with what it has (a
-# search that finds nothing otherwise walks every total up to max_total).
-DEFAULT_TIME_LIMIT = 120.0
 
 
 class RationalFitter(Estimator):
@@ -177,47 +177,9 @@ class RationalFitter(Estimator):
 
     # -- validation -------------------------------------------------------------------
     def _validate(self, seg: Segments) -> PolynomialSpace:
-        get_family(self.basis)
-        if self.index_set not in INDEX_SETS:
-            raise InputError(f"unknown index set {self.index_set!r}; choose total or tensor")
-        if self.strategy not in STRATEGIES:
-            raise InputError(f"unknown strategy {self.strategy!r}; choose {STRATEGIES}")
-        if self.split_rule not in SPLIT_RULES:
-            raise InputError(f"unknown split rule {self.split_rule!r}; choose {SPLIT_RULES}")
-        if self.formulation not in FORMULATIONS:
-            raise InputError(
-                f"unknown formulation {self.formulation!r}; choose {', '.join(FORMULATIONS)}"
-            )
-        if self.formulation == "arnoldi" and seg.dim > 1 and self.index_set != "total":
+        p = check_fit_params({k: getattr(self, k) for k in FIT_OPTIONS})
+        if p["formulation"] == "arnoldi" and seg.dim > 1 and p["index_set"] != "total":
             raise InputError("formulation 'arnoldi' needs index_set='total' in n-D")
-        if self.cross_check not in CROSS_CHECKS:
-            raise InputError(f"unknown cross check {self.cross_check!r}; choose {CROSS_CHECKS}")
-        check_solver(self.solver)
-        for name in ("n", "m"):
-            v = getattr(self, name)
-            if v is not None and (not _is_int(v) or v < 1):
-                raise InputError(f"{name} must be an integer >= 1 (a coefficient count), got {v!r}")
-        if (self.n is None) != (self.m is None):
-            raise InputError("give both n and m, or neither")
-        if self.total is not None and (not _is_int(self.total) or self.total < 2):
-            raise InputError(f"total must be an integer >= 2, got {self.total!r}")
-        if not _is_int(self.min_total) or self.min_total < 2:
-            raise InputError(f"min_total must be an integer >= 2, got {self.min_total!r}")
-        if self.max_total is not None and (
-            not _is_int(self.max_total) or self.max_total < self.min_total
-        ):
-            raise InputError(
-                f"max_total must be an integer >= min_total={self.min_total}, "
-                f"got {self.max_total!r}"
-            )
-        if self.jobs is not None and (not _is_int(self.jobs) or self.jobs < 1):
-            raise InputError(f"jobs must be an integer >= 1, got {self.jobs!r}")
-        if self.time_limit is not None and not (
-            isinstance(self.time_limit, (int, float, np.number))
-            and not isinstance(self.time_limit, bool) and float(self.time_limit) > 0
-        ):
-            raise InputError(f"time_limit must be a number of seconds > 0 or None, "
-                             f"got {self.time_limit!r}")
         zero = seg.hi == seg.lo
         if zero.any():
             i, j = (int(v) for v in np.argwhere(zero)[0])

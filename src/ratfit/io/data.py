@@ -132,19 +132,8 @@ class Dataset:
                 f"{self.source} has only lo/hi bounds, no y values: "
                 "--dt/--abs-width cannot be applied"
             )
-        names = self.output_names
-        rel = None if dt is None else Segments.from_relative(self.x, self.y, dt, names=names)
-        ab = (
-            None
-            if abs_width is None
-            else Segments.from_absolute(self.x, self.y, abs_width, names=names)
-        )
-        if rel is None:
-            assert ab is not None
-            return ab
-        if ab is None:
-            return rel
-        return Segments(self.x, np.minimum(rel.lo, ab.lo), np.maximum(rel.hi, ab.hi), self.y, names)
+        return Segments.from_widths(self.x, self.y, dt=dt, abs_width=abs_width,
+                                    names=self.output_names)
 
 
 def _check_order(

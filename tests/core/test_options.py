@@ -1,0 +1,111 @@
+"""One option spec: the fitter's signature, its validation, the CLI and the batch manifest agree."""
+
+from __future__ import annotations
+
+import inspect
+
+import click
+import numpy as np
+import pytest
+
+from ratfit import RationalFitter, Segments
+from ratfit.batch.runner import DEFAULTS, FIT_PARAMS, load_manifest, settings_id
+from ratfit.cli import main
+from ratfit.core.bases import FAMILIES
+from ratfit.core.options import FIT_OPTIONS, check_fit_params
+from ratfit.core.solvers import SOLVERS
+from ratfit.errors import InputError
+
+
+def _command(path: str) -> click.Command:
+    cmd: click.Command = main
+    for part in path.split():
+        cmd = cmd.commands[part]  # type: ignore[attr-defined]
+    return cmd
+
+
+def _flags(cmd: click.Command) -> dict[str, click.Parameter]:
+    return {p.name: p for p in cmd.params if p.name}
+
+
+def test_spec_is_the_fitters_signature() -> None:
+    sig = inspect.signature(RationalFitter.__init__).parameters
+    params = [k for k in sig if k != "self"]
+    assert params == list(FIT_OPTIONS)
+    for k, opt in FIT_OPTIONS.items():
+        assert sig[k].default == opt.default, k
+    assert RationalFitter().get_params() == {k: o.default for k, o in FIT_OPTIONS.items()}
+
+
+@pytest.mark.parametrize("path", ["fit", "cdf", "brdf fit", "tolerance"])
+def test_basis_choices_come_from_the_registry(path: str) -> None:
+    basis = _flags(_command(path))["basis"]
+    assert isinstance(basis.type, click.Choice)
+    assert tuple(basis.type.choices) == tuple(FAMILIES)
+
+
+def test_fit_command_exposes_every_cli_option_with_the_spec_default() -> None:
+    flags = _flags(_command("fit"))
+    for k, opt in FIT_OPTIONS.items():
+        if not opt.cli:
+            assert k not in flags
+            continue
+        assert k in flags, k
+        assert flags[k].opts == [opt.flag]
+        if opt.kind != "domain":
+            assert flags[k].default == opt.default, k
+    assert "Known: " + ", ".join(SOLVERS) in flags["solver"].help
+
+
+def test_exit_codes_are_in_fit_help() -> None:
+    text = _command("fit").help or ""
+    assert "Exit codes: 0" in text and "1 the search found no" in text and "2 bad input" in text
+
+
+@pytest.mark.parametrize(("params", "message"), [
+    (dict(basis="nope"), "unknown basis 'nope'; choose one of legendre, chebyshev, monomial"),
+    (dict(formulation="fast"), "unknown formulation 'fast'"),
+    (dict(split_rule="max"), "unknown split rule 'max'"),
+    (dict(n=0, m=2), "n must be an integer >= 1"),
+    (dict(n=2.0, m=2), "n must be an integer >= 1"),
+    (dict(jobs=True), "jobs must be an integer >= 1"),
+    (dict(n=3), "give both n and m"),
+    (dict(n=3, m=2, total=5), "exclusive"),
+    (dict(min_total=8, max_total=4), "max_total must be an integer >= min_total=8"),
+    (dict(domain=[[1.0, 0.0]]), "domain must be"),
+    (dict(domain=[[0.0, np.nan]]), "domain must be"),
+    (dict(active_set="yes"), "active_set must be true, false or absent"),
+    (dict(degree=3), "unknown parameter 'degree'"),
+])
+def test_one_rule_one_message(params: dict, message: str) -> None:
+    with pytest.raises(InputError, match=message.replace("(", r"\(").replace(")", r"\)")):
+        check_fit_params(params)
+    if "degree" in params:
+        return
+    x = np.linspace(0, 1, 20)
+    seg = Segments.from_relative(x, 1 + x, 0.1)
+    with pytest.raises(InputError, match=message.replace("(", r"\(").replace(")", r"\)")):
+        RationalFitter(**params).fit(seg)
+
+
+def test_manifest_accepts_every_fit_option_formulation_included(tmp_path) -> None:
+    (tmp_path / "a.csv").write_text("x,y\n0,1\n1,2\n2,3\n")
+    assert set(FIT_PARAMS) == set(FIT_OPTIONS) - {"callback"}
+    assert set(FIT_PARAMS) <= set(DEFAULTS)
+    entries, _, _ = load_manifest(
+        {"inputs": ["a.csv"], "defaults": {"formulation": "basis", "dt": 0.1},
+         "settings": [{"formulation": "arnoldi"}, {}]}, base_dir=tmp_path)
+    forms = [c["formulation"] for c in entries[0].combos]
+    assert forms == ["arnoldi", "basis"]
+    with pytest.raises(InputError, match=r"defaults: unknown formulation 'fast'"):
+        load_manifest({"inputs": ["a.csv"], "defaults": {"formulation": "fast"}},
+                      base_dir=tmp_path)
+    with pytest.raises(InputError, match="unknown key 'degree'"):
+        load_manifest({"inputs": ["a.csv"], "defaults": {"degree": 3}}, base_dir=tmp_path)
+
+
+def test_settings_id_ignores_a_new_key_at_its_default() -> None:
+    base = dict(DEFAULTS)
+    assert settings_id(base) == settings_id({**base, "formulation": "auto"})
+    assert settings_id(base) != settings_id({**base, "formulation": "basis"})
+    assert settings_id(base) == settings_id({**base, "jobs": 7})
