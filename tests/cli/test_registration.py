@@ -7,8 +7,8 @@ import sys
 
 import pytest
 
-COMMANDS = ["batch", "brdf", "cdf", "demo", "eval", "export", "fit", "plot", "report",
-            "sample", "tolerance"]
+COMMANDS = ["batch", "brdf", "cdf", "demo", "eval", "export", "fit", "plot", "render",
+            "report", "sample", "tolerance"]
 SUBCOMMANDS = {"brdf": ["compare", "eval", "fit"], "demo": ["addendum", "cdf"]}
 FIRST_IMPORTS = ["ratfit.cli.brdf", "ratfit.cli.export", "ratfit.cli.cdf", "ratfit.cli.batch",
                  "ratfit.cli.tolerance", "ratfit.cli.main", "ratfit.cli.fit", "ratfit"]

@@ -14,5 +14,6 @@ from ratfit.cli import brdf as _brdf  # noqa: E402,F401  isort: skip
 from ratfit.cli import export as _export  # noqa: E402,F401  isort: skip
 from ratfit.cli import tolerance as _tolerance  # noqa: E402,F401  isort: skip
 from ratfit.cli import batch as _batch  # noqa: E402,F401  isort: skip
+from ratfit.cli import render as _render  # noqa: E402,F401  isort: skip
 
 __all__ = ["main"]

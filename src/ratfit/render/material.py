@@ -118,14 +118,17 @@ class FitMaterial:
 class DataMaterial:
     """Measured BRDF samples, interpolated for rendering.
 
-    Isotropic coordinates (theta_l, theta_v, |delta_phi|) with every sample also
-    entered with L and V exchanged (reciprocity doubles the coverage);
-    piecewise-linear interpolation on their Delaunay tetrahedra (scipy), nearest
-    sample outside the convex hull. Above ``max_linear`` samples: nearest only.
+    Each (L, V) pair is embedded as directions in the canonical frame of an
+    isotropic BRDF (L rotated to azimuth 0, V's azimuth folded to [0, pi]), every
+    sample also entered with L and V exchanged (reciprocity doubles the
+    coverage). A query takes the inverse-distance-squared average of its ``k``
+    nearest samples in that embedding (exact at a sample): scattered goniometer
+    data has no grid for multilinear interpolation, and scipy's Delaunay-based
+    interpolation is very slow on such degenerate point sets.
     """
 
-    def __init__(self, path: str | os.PathLike[str], *, max_linear: int = 200_000) -> None:
-        from scipy.interpolate import LinearNDInterpolator, NearestNDInterpolator
+    def __init__(self, path: str | os.PathLike[str], *, k: int = 8) -> None:
+        from scipy.spatial import cKDTree
 
         from ratfit.brdf.io import brdf_dataset
         from ratfit.brdf.parametrizations import get_parametrization
@@ -148,29 +151,26 @@ class DataMaterial:
         pts = np.vstack([self._features(L, V), self._features(V, L)])
         vals = np.vstack([y, y])
         pts, idx = np.unique(np.round(pts, 9), axis=0, return_index=True)
-        vals = vals[idx]
+        self._vals = vals[idx]
+        self._tree = cKDTree(pts)
+        self._k = int(min(k, len(pts)))
         self.n_samples = int(len(y))
         self.isotropic = True
-        self._nearest = NearestNDInterpolator(pts, vals)
-        self._linear = LinearNDInterpolator(pts, vals) if len(pts) <= max_linear else None
         self.negative_fraction = 0.0
 
     @staticmethod
     def _features(L: Array, V: Array) -> Array:
-        tl = np.arccos(np.clip(L[:, 2], -1.0, 1.0))
-        tv = np.arccos(np.clip(V[:, 2], -1.0, 1.0))
-        dphi = np.arctan2(L[:, 1], L[:, 0]) - np.arctan2(V[:, 1], V[:, 0])
-        dphi = np.abs(np.mod(dphi + np.pi, 2.0 * np.pi) - np.pi)
-        return np.stack([tl, tv, dphi], axis=1)
+        sl = np.hypot(L[:, 0], L[:, 1])
+        dphi = np.arctan2(V[:, 1], V[:, 0]) - np.arctan2(L[:, 1], L[:, 0])
+        sv = np.hypot(V[:, 0], V[:, 1])
+        return np.stack([sl, L[:, 2], sv * np.cos(dphi), sv * np.abs(np.sin(dphi)), V[:, 2]], 1)
 
     def __call__(self, L: ArrayLike, V: ArrayLike) -> Array:
         q = self._features(unit_rows(L), unit_rows(V))
-        out = np.full((len(q), 3), np.nan)
-        if self._linear is not None:
-            out = self._linear(q)
-        miss = ~np.all(np.isfinite(out), axis=1)
-        if miss.any():
-            out[miss] = self._nearest(q[miss])
+        d, i = self._tree.query(q, k=self._k)
+        d, i = d.reshape(len(q), -1), i.reshape(len(q), -1)
+        w = 1.0 / np.maximum(d, 1e-9) ** 2
+        out = np.einsum("nk,nkc->nc", w, self._vals[i]) / w.sum(axis=1)[:, None]
         return np.maximum(out, 0.0)
 
 

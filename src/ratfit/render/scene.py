@@ -36,7 +36,10 @@ def environment_map(width: int = 256) -> NDArray[np.float32]:
     img[..., 2] = 0.08 + 0.45 * sky
     ground = V > 0.5
     img[ground] = np.array([0.06, 0.05, 0.04], dtype=np.float32)
-    win = (np.abs(U - 0.30) < 0.06) & (np.abs(V - 0.30) < 0.08)
+    # Mitsuba's envmap: d.y = cos(pi v), (d.x, -d.z) ~ (sin, cos)(2 pi u). The window sits
+    # at d = (-0.67, 0.67, 0.33): the camera (on +z) sees it mirrored where the normal
+    # is (-0.41, 0.41, 0.82), up and left of the sphere's centre.
+    win = (np.abs(U - 0.677) < 0.045) & (np.abs(V - 0.268) < 0.06)
     img[win] = np.array([40.0, 38.0, 34.0], dtype=np.float32)
     return img
 
@@ -59,12 +62,11 @@ def _scene_dict(mi, bsdf, scene: str, size: int) -> dict:
         "sphere": {"type": "sphere", "radius": 1.0, "bsdf": bsdf},
     }
     if scene in ("sphere", "sphere-point"):
-        d["env"] = {"type": "envmap", "bitmap": mi.Bitmap(environment_map()),
-                    "to_world": T().rotate([0.0, 1.0, 0.0], 160.0)}
+        d["env"] = {"type": "envmap", "bitmap": mi.Bitmap(environment_map())}
     if scene == "furnace":  # white furnace: radiance 1 everywhere, pixel = albedo
         d["env"] = {"type": "constant", "radiance": {"type": "rgb", "value": 1.0}}
     if scene in ("point", "sphere-point"):
-        d["light"] = {"type": "point", "position": [3.0, 3.0, 3.5],
+        d["light"] = {"type": "point", "position": [2.5, 2.5, 4.0],
                       "intensity": {"type": "rgb", "value": [25.0, 25.0, 25.0]}}
         if scene == "point":
             d["ambient"] = {"type": "constant", "radiance": {"type": "rgb", "value": 0.02}}
