@@ -37,7 +37,7 @@ from ratfit.io.data import Dataset
 from ratfit.io.fitfile import SavedFit, fit_document, load_fit, save_fit
 
 __all__ = ["BRDFFit", "BRDFFitter", "brdf_metrics", "brdf_segments", "cos_theta_l", "fit_brdf",
-           "load_brdf_fit", "prepare_values", "save_brdf_fit", "valid_grid"]
+           "load_brdf_fit", "nonnegative_segments", "prepare_values", "save_brdf_fit", "valid_grid"]
 
 Array = NDArray[np.float64]
 _NEEDS_THETA_L = ("full", "isotropic", "tv_tl")
@@ -109,8 +109,8 @@ def fit_brdf(ds: Dataset, *, dt: float | None = None, abs_width: float | None = 
     :attr:`BRDFFitter.positive_q`. ``brdf_meta`` is the ``"brdf"`` block of
     the fit file.
     """
-    seg = brdf_segments(ds, dt=dt, abs_width=abs_width, floor_rel=floor_rel, cosine=cosine,
-                        clamp=clamp)
+    seg = nonnegative_segments(brdf_segments(ds, dt=dt, abs_width=abs_width,
+                                             floor_rel=floor_rel, cosine=cosine, clamp=clamp))
     fitter = BRDFFitter(parametrization=str(ds.meta.get("param_in", "UNKNOWN")),
                         positive_q=bool(positive_q), **fitter_params)
     fitter.fit(seg)
@@ -123,8 +123,25 @@ def fit_brdf(ds: Dataset, *, dt: float | None = None, abs_width: float | None = 
         "param_out": ds.meta.get("param_out"),
         "channel_names": list(seg.names),
         "segments": {"dt": dt, "abs_width": abs_width, "floor_rel": floor_rel},
+        # what "verified" covered beyond the samples, per channel
+        "validity": [None if v is None else v.summary() for v in fitter.validity_],
     }
     return fitter, seg, meta
+
+
+def nonnegative_segments(seg: Segments) -> Segments:
+    """Segments with lo raised to 0: a BRDF value is never negative, so a fit that
+    goes below 0 at a sample (allowed by a wide absolute floor) is not a fit."""
+    if not np.any(seg.lo < 0):
+        return seg
+    if np.any(seg.hi <= 0):
+        i, j = (int(v) for v in np.argwhere(seg.hi <= 0)[0])
+        raise InputError(
+            f"{int(np.sum(seg.hi <= 0))} segment(s) lie at or below 0 (first: row {i}, "
+            f"channel {seg.names[j]}, hi = {float(seg.hi[i, j])!r}); a BRDF is non-negative: "
+            "raise the values with --clamp 0 and give the segments a floor (--abs-width)"
+        )
+    return Segments(seg.x, np.maximum(seg.lo, 0.0), seg.hi, seg.y, seg.names)
 
 
 class BRDFFitter(RationalFitter):
@@ -151,6 +168,12 @@ class BRDFFitter(RationalFitter):
         Also constrain q > 0 at the valid grid points inside the QP (rows added
         by the active set only where violated), so that candidates whose q
         changes sign between sparse measurements are not produced at all.
+    physical : bool, default True
+        Constrain q > 0 and p >= 0 (so r >= 0) on a grid of direction pairs
+        above the horizon inside the domain (:func:`ratfit.brdf.validity.configurations`),
+        rows entering the active set only where violated; points where the
+        verification's denser check still finds q <= 0 or r < 0 join that grid
+        for every later split. Verification checks validity whatever this says.
     **params
         Every other :class:`~ratfit.fitting.search.RationalFitter` parameter.
 
@@ -167,20 +190,47 @@ class BRDFFitter(RationalFitter):
     """
 
     def __init__(self, *, parametrization: str = "UNKNOWN", positive_q: bool = False,
-                 **params: Any) -> None:
+                 physical: bool = True, **params: Any) -> None:
         super().__init__(**params)
         self.parametrization = parametrization
         self.positive_q = positive_q
+        self.physical = physical
+
+    def fit(self, segments: Segments) -> BRDFFitter:
+        self._extra: list[Array] = []
+        self._checks: dict[int, Any] = {}
+        super().fit(segments)
+        # what the dense validity check said about each channel's chosen fit
+        self.validity_ = [
+            self._checks.get(id(r.rational)) if r.rational is not None else None
+            for r in self.results_
+        ]
+        return self
 
     def _split_system(self, space: PolynomialSpace, seg: Segments, j: int, n: int, m: int,
                       like: ConstraintSystem | None = None) -> ConstraintSystem | None:
         system = super()._split_system(space, seg, j, n, m, like=like)
-        if not self.positive_q or space.dim == 1 or not isinstance(system, ArnoldiSystem):
+        if not (self.physical or self.positive_q) or not isinstance(system, ArnoldiSystem):
             return system
-        grid = self._valid_grid_for(space.domain)
-        if grid is None or grid.size == 0:
+        from ratfit.brdf.validity import configurations
+
+        if self.physical:
+            key = (str(self.parametrization), space.domain.tobytes())
+            cache = getattr(self, "_conf_cache", None)
+            if cache is None or cache[0] != key:
+                cache = self._conf_cache = (key, configurations(self.parametrization,
+                                                                space.domain))
+            grid = cache[1]
+        else:
+            grid = self._valid_grid_for(space.domain) if space.dim > 1 else None
+        if grid is None:
             return system
-        return _PositiveQ(system, space.to_window(grid))
+        extra = getattr(self, "_extra", [])
+        if extra:
+            grid = np.concatenate([grid, *extra])
+        if grid.size == 0:
+            return system
+        return _ValidRows(system, space.to_window(grid), numerator=self.physical)
 
     def _valid_grid_for(self, domain: ArrayLike) -> Array | None:
         dom = np.asarray(domain, dtype=float)
@@ -195,39 +245,57 @@ class BRDFFitter(RationalFitter):
         return self._valid_grid_for(rf.space.domain)
 
     def _verify(self, rf: RationalFunction, seg: Segments, j: int) -> Verification:
+        """Segments at every sample, then q > 0 and r >= 0 on a dense, adaptive set
+        of valid direction pairs (:func:`ratfit.brdf.validity.check_validity`)."""
+        from ratfit.brdf.validity import check_validity
+
         ver = verify(rf, seg, channel=j)
-        if ver.verified or rf.space.dim == 1 or not ver.denominator_sign_changes:
+        if ver.n_violations or not np.isfinite(ver.linf):
             return ver
-        if ver.n_violations or ver.poles_in_domain or not np.isfinite(ver.linf):
+        if rf.space.dim == 1 and ver.poles_in_domain:
             return ver
-        grid = self._valid_grid(rf)
-        if grid is None:
-            return ver
-        q = np.concatenate([rf.denominator(seg.x), rf.denominator(grid)])
-        if not np.all(np.isfinite(q)):
-            return ver
-        change = bool(np.any(q > 0) and np.any(q < 0)) or bool(np.any(q == 0))
-        return replace(ver, verified=not change, denominator_sign_changes=change)
+        chk = check_validity(rf, self.parametrization)
+        if chk is None:
+            return ver  # unknown parametrization: the plain box check decides
+        if not hasattr(self, "_checks"):
+            self._checks, self._extra = {}, []
+        self._checks[id(rf)] = chk
+        if len(chk.bad_points):
+            # constraint generation: later splits keep q > 0, p >= 0 there too
+            self._extra.append(chk.bad_points[:200])
+        with np.errstate(divide="ignore", invalid="ignore"):
+            at_samples = bool(np.all(rf(seg.x) >= 0))
+        ok = chk.valid and at_samples and ver.poles_in_domain == 0
+        return replace(ver, verified=ok, denominator_sign_changes=chk.min_q <= 0)
 
 
-class _PositiveQ(ConstraintSystem):
-    """An ArnoldiSystem plus one row q(g) / |psi(g)| >= delta per valid grid point g.
+class _ValidRows(ConstraintSystem):
+    """An ArnoldiSystem plus, per valid configuration g, the row q(g) / |psi(g)| >= delta
+    and (``numerator``) the row p(g) / |phi(g)| >= delta.
 
     Row protocol of :class:`ratfit.core.qp.ConstraintSystem`: rows 0 .. 2N-1 are the
-    data's, rows 2N + i the grid's; the active set starts from data rows only
-    and adds grid rows where q is not positive enough.
+    data's, then the grid's q rows, then its p rows; the active set starts from
+    data rows only and adds grid rows where they are violated.
     """
 
-    def __init__(self, base: ArnoldiSystem, t_grid: Array) -> None:
+    def __init__(self, base: ArnoldiSystem, t_grid: Array, numerator: bool = True) -> None:
         self.base = base
-        self.space, self.n_points = base.space, base.n_points
+        self.space = base.space
+        # Counts the grid too: solve_fixed then always works on an active set
+        # (a dense grid is mostly slack; all of it in one QP is slow).
+        self.n_points = base.n_points + len(t_grid)
         self.n, self.m = base.n, base.m
         psi = base.q_basis.design(t_grid, base.m, window=True)
         self.psi = psi / np.linalg.norm(psi, axis=1)[:, None]
+        if numerator:
+            phi = base.p_basis.design(t_grid, base.n, window=True)
+            self.phi = phi / np.linalg.norm(phi, axis=1)[:, None]
+        else:
+            self.phi = np.zeros((0, base.n))
 
     @property
     def n_rows(self) -> int:
-        return self.base.n_rows + self.psi.shape[0]
+        return self.base.n_rows + self.psi.shape[0] + self.phi.shape[0]
 
     def prepare(self, n_max: int, m_max: int) -> None:
         pass
@@ -236,21 +304,26 @@ class _PositiveQ(ConstraintSystem):
         return self.base.conditioning(n, m)
 
     def rows(self, n: int, m: int, ridx: NDArray[np.int64] | None = None) -> Array:
-        nb = self.base.n_rows
+        nb, nq = self.base.n_rows, self.psi.shape[0]
         if ridx is None:
             ridx = np.arange(self.n_rows)
         out = np.zeros((ridx.size, n + m))
         data = ridx < nb
         if data.any():
             out[data] = self.base.rows(n, m, ridx[data])
-        out[~data, n:] = self.psi[ridx[~data] - nb]
+        qrow = (ridx >= nb) & (ridx < nb + nq)
+        out[qrow, n:] = self.psi[ridx[qrow] - nb]
+        prow = ridx >= nb + nq
+        out[prow, :n] = self.phi[ridx[prow] - nb - nq]
         return out
 
     def row_norms(self, n: int, m: int) -> Array:
-        return np.concatenate([self.base.row_norms(n, m), np.ones(self.psi.shape[0])])
+        return np.concatenate([self.base.row_norms(n, m),
+                               np.ones(self.psi.shape[0] + self.phi.shape[0])])
 
     def residuals(self, n: int, m: int, c: Array) -> Array:
-        return np.concatenate([self.base.residuals(n, m, c), self.psi @ c[n:]])
+        return np.concatenate([self.base.residuals(n, m, c), self.psi @ c[n:],
+                               self.phi @ c[:n]])
 
     def initial_rows(self, size: int) -> NDArray[np.int64]:
         return self.base.initial_rows(size)

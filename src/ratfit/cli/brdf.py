@@ -105,6 +105,9 @@ def brdf_fit(input_path: Path, output: Path | None, fmt: str | None, param: str 
     else:
         _print_report(results, output if ok and output else None)
         click.echo(f"parametrization {meta['parametrization']}, {seg.n_points} samples")
+        for name, v in zip(seg.names, meta.get("validity") or [], strict=False):
+            if v:
+                click.echo(f"{name}: physical check: {v}")
         for name, mm in (metrics or {}).items():
             click.echo(f"{name}: " + ", ".join(f"{k} {v:.4g}" for k, v in mm.items()))
         if output is not None and not ok:

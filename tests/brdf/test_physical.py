@@ -1,0 +1,104 @@
+"""A BRDF fit that is negative or has a pole between the samples is never a success."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from ratfit.brdf.fitter import BRDFFitter, fit_brdf, nonnegative_segments
+from ratfit.brdf.parametrizations import get_parametrization
+from ratfit.brdf.validity import check_validity, configurations
+from ratfit.core.bases import PolynomialSpace
+from ratfit.core.rational import RationalFunction
+from ratfit.core.segments import Segments
+from ratfit.errors import InputError
+from ratfit.io.data import Dataset
+
+P = "ISOTROPIC_TV_TL_DPHI"
+DEG = np.pi / 180
+
+
+def _samples() -> np.ndarray:
+    """A sparse gonioreflectometer grid: elevations every 20 deg, azimuths every 45."""
+    th = np.array([0, 20, 40, 60, 80]) * DEG
+    ph = np.array([0, 45, 90, 135, 180]) * DEG
+    return np.stack([g.ravel() for g in np.meshgrid(th, th, ph, indexing="ij")], axis=1)
+
+
+def _candidate(p_poly, q_poly) -> tuple[RationalFunction, Segments]:
+    """r = p / q given as monomials in (theta_v, theta_l) (radians), exactly in the
+    Legendre space of the samples' box; segments hugging r at the samples."""
+    x = _samples()
+    space = PolynomialSpace("legendre", np.stack([x.min(0), x.max(0)], 1), "total")
+    t = space.to_window(configurations(P, space.domain, 4000))
+    X = space.from_window(t)
+    B = space.design(X, 10)  # total degree <= 2 in 3 variables
+    p = np.linalg.lstsq(B, p_poly(X), rcond=None)[0]
+    q = np.linalg.lstsq(B, q_poly(X), rcond=None)[0]
+    rf = RationalFunction(space, p, q)
+    y = rf(x)
+    return rf, Segments.from_bounds(x, y - 0.05 * np.abs(y) - 1e-3, y + 0.05 * np.abs(y) + 1e-3, y)
+
+
+def _fitter() -> BRDFFitter:
+    return BRDFFitter(parametrization=P)
+
+
+def test_pole_between_samples_at_75_degrees_is_rejected() -> None:
+    a = 75 * DEG
+    rf, seg = _candidate(lambda X: np.ones(len(X)),
+                         lambda X: (X[:, 0] - a) ** 2 + (X[:, 1] - a) ** 2 - 0.01)
+    q_s = rf.denominator(seg.x)
+    assert np.all(q_s > 0)  # the samples never see it
+    ver = _fitter()._verify(rf, seg, 0)
+    assert ver.n_violations == 0
+    assert not ver.verified and ver.denominator_sign_changes
+    chk = check_validity(rf, P)
+    assert chk is not None and not chk.valid and chk.min_q < 0
+    # the bad configurations found are around theta_v = theta_l = 75 deg
+    assert np.all(np.abs(chk.bad_points[:, :2] - a) < 6 * DEG)
+
+
+def test_negative_between_samples_is_rejected() -> None:
+    b = 50 * DEG
+    rf, seg = _candidate(lambda X: (X[:, 0] - b) ** 2 - 0.005, lambda X: np.ones(len(X)))
+    assert np.all(rf(seg.x) > 0)  # 40 and 60 deg are positive; 50 deg is not
+    ver = _fitter()._verify(rf, seg, 0)
+    assert ver.n_violations == 0 and not ver.verified
+    chk = check_validity(rf, P)
+    assert chk is not None and not chk.valid and chk.min_r < 0
+    assert np.all(np.abs(chk.bad_points[:, 0] - b) < 5 * DEG)
+
+
+def test_a_positive_pole_free_candidate_passes() -> None:
+    rf, seg = _candidate(lambda X: 1.0 + X[:, 0] ** 2, lambda X: 2.0 + X[:, 1])
+    ver = _fitter()._verify(rf, seg, 0)
+    assert ver.verified
+    chk = check_validity(rf, P)
+    assert chk.valid and chk.min_q > 0 and chk.min_r > 0 and chk.checked > 50_000
+
+
+def test_segments_never_allow_negative_values() -> None:
+    x = _samples()[::12][:10]
+    seg = Segments.from_absolute(x, np.linspace(0.0, 1.0, 10), 0.5)
+    out = nonnegative_segments(seg)
+    assert out.lo.min() == 0.0 and np.array_equal(out.hi, seg.hi)
+    with pytest.raises(InputError, match="--clamp 0"):
+        nonnegative_segments(Segments.from_bounds(x, np.full(10, -2.0), np.full(10, -1.0)))
+
+
+def test_fit_is_physical_where_the_data_is_sparse() -> None:
+    """A lobe measured on the sparse grid: the verified fit keeps q > 0 and r >= 0 on
+    the dense valid set, not only at the 125 samples."""
+    x = _samples()
+    L, V = get_parametrization(P).to_dirs(x)
+    h = L + V
+    c = h[:, 2] / np.linalg.norm(h, axis=1)
+    y = (0.1 + 0.5 * np.exp(-8 * (1 - c)))[:, None]
+    ds = Dataset(x, y, None, None, ("theta_v", "theta_l", "delta_phi"), ("R",), {"param_in": P})
+    fitter, seg, _ = fit_brdf(ds, dt=0.1, max_total=30)
+    assert fitter.success_, fitter.result_.message
+    chk = fitter.validity_[0]
+    assert chk is not None and chk.valid and chk.min_q > 0 and chk.min_r >= 0
+    again = check_validity(fitter.result_.rational, P, points=600_000)
+    assert again.valid
