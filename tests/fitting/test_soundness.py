@@ -187,3 +187,36 @@ def test_ctrl_c_exits_130_without_a_fit_file(tmp_path, monkeypatch) -> None:
     r = CliRunner().invoke(main, ["fit", str(data), "--dt", "0.1", "-o", str(out)])
     assert r.exit_code == 130 and "interrupted" in r.output
     assert not out.exists()
+
+
+# ---------------------------------------------------------------------------- decades
+@pytest.mark.parametrize("dt", [0.1, 1e-3])
+def test_sqrt_over_fifteen_decades_fits_in_log_x(dt: float, tmp_path) -> None:
+    """scipy's AAA test: sqrt on logspace(-15, 0, 300); AAA needs 48..68 coefficients."""
+    from ratfit.io.fitfile import fit_document, load_fit, save_fit
+
+    x = np.logspace(-15, 0, 300)
+    y = np.sqrt(x)
+    seg = Segments.from_relative(x, y, dt)
+    res = RationalFitter().fit(seg).result_
+    assert res.success and res.rational.space.variable == "log"
+    assert res.n + res.m <= 16 and "log x" in res.message
+    # Independently: inside every segment, and q keeps one sign on a dense grid in x.
+    r = res.rational(x)
+    assert np.all((seg.lo[:, 0] <= r) & (r <= seg.hi[:, 0]))
+    q = res.rational.denominator(np.logspace(-15, 0, 20001))
+    assert np.all(q > 0) or np.all(q < 0)
+    # The variable travels with the fit file: evaluation after loading is the same.
+    path = tmp_path / "fit.json"
+    save_fit(path, fit_document([res]))
+    assert np.array_equal(load_fit(path)(x)[:, 0], r)
+
+
+def test_rational_in_x_beats_log_x_when_smaller() -> None:
+    x = np.logspace(-6, 0, 200)
+    y = 1.0 / (x + 1e-3)
+    seg = Segments.from_relative(x, y, 1e-6)
+    assert _inside_exactly(x, seg.lo[:, 0], seg.hi[:, 0], lambda t: 1 / (t + Fraction(1, 1000)))
+    res = RationalFitter().fit(seg).result_
+    assert res.success and (res.n, res.m) == (1, 2)
+    assert res.rational.space.variable == "x"

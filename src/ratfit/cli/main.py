@@ -149,8 +149,11 @@ def _monomials(results, seg) -> list[dict | None]:
     from ratfit.core.monomial import to_monomial
     from ratfit.errors import AccuracyWarning
 
-    out = []
+    out: list[dict | None] = []
     for r in results:
+        if r.rational is not None and getattr(r.rational.space, "variable", "x") != "x":
+            out.append(None)  # a polynomial in log x has no monomial form in x
+            continue
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always", AccuracyWarning)
             mf = to_monomial(r.rational, seg.x)

@@ -71,6 +71,7 @@ FAMILIES: dict[str, Family] = {
 }
 
 INDEX_SETS = ("total", "tensor")
+VARIABLES = ("x", "log")
 
 
 def get_family(name: str) -> Family:
@@ -150,10 +151,14 @@ class PolynomialSpace:
     index_set : "total" (graded by total degree) or "tensor" (by max degree).
     max_degree : optional per-axis degree caps (see :func:`multi_indices`);
         an axis capped at 0 is one the function does not depend on.
+    variable : "x" (default) or "log" (1-D, positive domain): the window is
+        the affine image of log x, so p and q are polynomials in log x. Data
+        spanning many decades (sqrt on 1e-15..1) is then smooth and small in t,
+        where polynomials in x would need a denominator whose values span 1e180.
     """
 
     def __init__(self, family: str, domain: ArrayLike, index_set: str = "total",
-                 max_degree: tuple[int, ...] | None = None) -> None:
+                 max_degree: tuple[int, ...] | None = None, variable: str = "x") -> None:
         self.family = get_family(family)
         dom = np.array(domain, dtype=float).reshape(-1, 2)
         if not np.all(np.isfinite(dom)):
@@ -177,6 +182,11 @@ class PolynomialSpace:
                     f"max_degree needs {dom.shape[0]} caps >= 0, got {list(max_degree)}"
                 )
         self.max_degree = max_degree
+        if variable not in VARIABLES:
+            raise InputError(f"unknown variable {variable!r}; choose one of {', '.join(VARIABLES)}")
+        if variable == "log" and (dom.shape[0] != 1 or dom[0, 0] <= 0):
+            raise InputError(f"variable 'log' needs a 1-D domain of positive x, got {dom.tolist()}")
+        self.variable = variable
 
     # -- geometry -------------------------------------------------------------
     @property
@@ -185,8 +195,15 @@ class PolynomialSpace:
 
     @cached_property
     def _scale(self) -> tuple[Array, Array]:
+        """(a, b) of t = a u + b, with u = x (or log x for variable 'log')."""
         lo, hi = self.domain[:, 0], self.domain[:, 1]
+        if self.variable == "log":
+            lo, hi = np.log(lo), np.log(hi)
         return 2.0 / (hi - lo), -(hi + lo) / (hi - lo)
+
+    def from_variable(self, u: NDArray) -> NDArray:
+        """x from u (the affine preimage of t): exp for variable 'log' (complex too)."""
+        return np.exp(u) if self.variable == "log" else u
 
     def to_window(self, x: ArrayLike) -> Array:
         """Map points (N, d) in the domain to t in [-1, 1]^d."""
@@ -198,11 +215,14 @@ class PolynomialSpace:
                 f"points must have shape (N, {self.dim}), got {np.shape(x)}"
             )
         a, b = self._scale
+        if self.variable == "log":
+            with np.errstate(divide="ignore", invalid="ignore"):
+                return np.log(xa) * a + b  # x <= 0 gives NaN/-inf: outside the space
         return xa * a + b
 
     def from_window(self, t: ArrayLike) -> Array:
         a, b = self._scale
-        return (np.asarray(t, dtype=float) - b) / a
+        return self.from_variable((np.asarray(t, dtype=float) - b) / a)
 
     # -- index sets and matrices ---------------------------------------------
     def indices(self, count: int) -> NDArray[np.int64]:
@@ -256,13 +276,15 @@ class PolynomialSpace:
         }
         if self.max_degree is not None:
             d["max_degree"] = list(self.max_degree)
+        if self.variable != "x":
+            d["variable"] = self.variable
         return d
 
     @classmethod
     def from_dict(cls, d: dict) -> PolynomialSpace:
         md = d.get("max_degree")
         return cls(d["family"], d["domain"], d.get("index_set", "total"),
-                   None if md is None else tuple(md))
+                   None if md is None else tuple(md), variable=d.get("variable", "x"))
 
     def __eq__(self, other: object) -> bool:
         return (
@@ -271,15 +293,18 @@ class PolynomialSpace:
             and self.index_set == other.index_set
             and np.array_equal(self.domain, other.domain)
             and self.max_degree == other.max_degree
+            and self.variable == other.variable
         )
 
     def __hash__(self) -> int:
-        return hash((self.family.name, self.index_set, self.domain.tobytes(), self.max_degree))
+        return hash((self.family.name, self.index_set, self.domain.tobytes(), self.max_degree,
+                     self.variable))
 
     def __repr__(self) -> str:
         return (
             f"PolynomialSpace({self.family.name!r}, domain={self.domain.tolist()}, "
             f"index_set={self.index_set!r}"
             + (f", max_degree={list(self.max_degree)}" if self.max_degree is not None else "")
+            + (f", variable={self.variable!r}" if self.variable != "x" else "")
             + ")"
         )

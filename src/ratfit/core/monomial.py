@@ -23,7 +23,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from ratfit.core.bases import PolynomialSpace
 from ratfit.core.rational import RationalFunction
-from ratfit.errors import AccuracyWarning
+from ratfit.errors import AccuracyWarning, InputError
 
 __all__ = ["MonomialForm", "horner", "to_monomial"]
 
@@ -130,6 +130,8 @@ def to_monomial(rf: RationalFunction, x: ArrayLike, *, warn_rtol: float = 1e-8) 
     route differs from it by more than ``warn_rtol`` relative to max |r|.
     """
     space = rf.space
+    if getattr(space, "variable", "x") != "x":
+        raise InputError("a fit in log x has no monomial form in x")
     xa = np.asarray(x, dtype=float)
     if xa.ndim == 1:
         xa = xa[:, None]

@@ -43,6 +43,7 @@ __all__ = [
 STRATEGIES = ("staircase", "exhaustive")
 FORMULATIONS = ("auto", "arnoldi", "basis")
 SPLIT_RULES = ("min-m", "error")
+VARIABLE_CHOICES = ("auto", "x", "log")
 DEFAULT_MAX_TOTAL = 100
 # Seconds a search may spend per channel before it stops with what it has (a
 # search that finds nothing otherwise walks every total up to max_total).
@@ -194,6 +195,9 @@ FIT_OPTIONS: dict[str, Option] = _opts(
            "arnoldi where it applies.", FORMULATIONS, label="formulation"),
     Option("time_limit", "seconds", DEFAULT_TIME_LIMIT,
            "Seconds per channel before the search stops with what it has (0: no limit)."),
+    Option("variable", "choice", "auto",
+           "p, q polynomials in x or in log x (auto: also log x for positive 1-D data over "
+           "more than 3 decades, keeping the smaller fit).", VARIABLE_CHOICES, label="variable"),
 )
 
 #: How segments are built from y values (every command and the batch manifest).

@@ -97,7 +97,7 @@ class RationalFunction:
         else:
             t = np.asarray(self.space.family.roots(q), dtype=complex)
         a, b = self.space._scale
-        return (t - b[0]) / a[0]
+        return self.space.from_variable((t - b[0]) / a[0])
 
     def real_poles_in_domain(self, *, rtol: float = 1e-9) -> Array:
         """Real roots of q inside the domain (closed), from q's basis coefficients."""

@@ -105,6 +105,9 @@ def plan_forms(
 
     if form not in FORMS:
         raise InputError(f"unknown form {form!r}; choose one of {', '.join(FORMS)}")
+    if getattr(saved.space, "variable", "x") != "x":
+        raise InputError("code export of fits in log x is not supported yet "
+                         "(ratfit eval and the Python API evaluate them)")
     bad = _unverified(saved)
     if bad:
         raise InputError(

@@ -106,6 +106,14 @@ class RationalFitter(Estimator):
         orthonormal on the data, weighted by a denominator guess; finds the
         smallest fits), "basis" (the seed's matrix), "auto" (arnoldi in 1-D
         and for the total index set in n-D).
+    variable : {"auto", "x", "log"}, default "auto"
+        The variable p and q are polynomials in. "log": log x (1-D, positive
+        x; recorded in the fit, so evaluation and files stay correct; no
+        monomial form or code export). "auto": a search on positive 1-D data
+        spanning more than three decades fits in log x first, then in x below
+        that total, and keeps the smaller verified fit (sqrt on 1e-15..1 needs
+        10 coefficients in log x at 10 %, and has no fit up to 100 in x);
+        otherwise x.
     time_limit : float, optional, default 120
         Seconds per channel; when they run out the search stops between splits
         and says so (status 1, or the smallest verified fit so far flagged as
@@ -156,6 +164,7 @@ class RationalFitter(Estimator):
         callback: Callable[[Attempt], None] | None = None,
         formulation: str = "auto",
         time_limit: float | None = DEFAULT_TIME_LIMIT,
+        variable: str = "auto",
     ) -> None:
         self.basis = basis
         self.index_set = index_set
@@ -174,6 +183,7 @@ class RationalFitter(Estimator):
         self.callback = callback
         self.formulation = formulation
         self.time_limit = time_limit
+        self.variable = variable
 
     # -- validation -------------------------------------------------------------------
     def _validate(self, seg: Segments) -> PolynomialSpace:
@@ -204,7 +214,32 @@ class RationalFitter(Estimator):
 
         # n-D: no degree above what an axis's distinct values can carry (grids).
         caps = axis_degree_caps(seg.x) if seg.dim > 1 else None
-        return PolynomialSpace(self.basis, domain, self.index_set, caps)
+        return PolynomialSpace(self.basis, domain, self.index_set, caps,
+                               variable="log" if self.variable == "log" else "x")
+
+    def _log_space(self, space: PolynomialSpace, seg: Segments) -> PolynomialSpace | None:
+        """The log-x space that variable="auto" also tries, or None."""
+        dom = space.domain
+        plain = (type(self)._make_system is RationalFitter._make_system
+                 and type(self)._verify is RationalFitter._verify)
+        if (self.variable != "auto" or not plain or seg.dim != 1 or self.n is not None
+                or self.total is not None or dom[0, 0] <= 0 or dom[0, 1] / dom[0, 0] < 1e3):
+            return None
+        return PolynomialSpace(space.family.name, dom, space.index_set, space.max_degree,
+                               variable="log")
+
+    def _fit_either(self, space: PolynomialSpace, log_space: PolynomialSpace | None,
+                    seg: Segments, j: int) -> FitResult:
+        """The channel's fit in x, or with ``log_space`` the smaller of log x and x."""
+        if log_space is None:
+            return self._fit_channel(space, seg, j)
+        lg = self._fit_channel(log_space, seg, j)
+        if not lg.success:
+            return self._fit_channel(space, seg, j)
+        if lg.n + lg.m <= int(self.min_total):
+            return lg
+        xs = self._fit_channel(space, seg, j, max_total=lg.n + lg.m - 1)
+        return xs if xs.success else lg
 
     # -- extension points (subclasses: monotone CDFs, other formulations) ------------
     def _make_system(self, space: PolynomialSpace, seg: Segments, j: int) -> ConstraintSystem:
@@ -246,7 +281,9 @@ class RationalFitter(Estimator):
         # channels are fitted scaled by a power of two (exact) and scaled back.
         factors = value_scales(segments)
         work = scale_segments(segments, factors)
-        results = [self._fit_channel(space, work, j) for j in range(segments.n_channels)]
+        log_space = self._log_space(space, segments)
+        results = [self._fit_either(space, log_space, work, j)
+                   for j in range(segments.n_channels)]
         self.results_ = [
             unscale_result(r, segments, j, float(f), self._verify)
             for j, (r, f) in enumerate(zip(results, factors, strict=True))
@@ -289,7 +326,8 @@ class RationalFitter(Estimator):
         """The active-set mode a fit uses (subclasses may choose one; never stored back)."""
         return self.active_set
 
-    def _fit_channel(self, space: PolynomialSpace, seg: Segments, j: int) -> FitResult:
+    def _fit_channel(self, space: PolynomialSpace, seg: Segments, j: int,
+                     max_total: int | None = None) -> FitResult:
         t0 = time.perf_counter()
         run = _Search(self, space, seg, j)
         if self.time_limit is not None:
@@ -300,7 +338,7 @@ class RationalFitter(Estimator):
             lo_t = hi_t = int(self.total)
         else:
             lo_t = int(self.min_total)
-            hi_t = int(self.max_total or DEFAULT_MAX_TOTAL)
+            hi_t = int(max_total or self.max_total or DEFAULT_MAX_TOTAL)
         try:
             if self.n is not None:
                 best = run.fixed(int(self.n), int(self.m))  # type: ignore[arg-type]
@@ -537,6 +575,8 @@ class _Search:
         if chosen and self.ok(chosen[0]):
             att, rf, ver = self.cache[chosen[0]]
             status, msg = 0, STATUS_MESSAGES[0]
+            if self.space.variable == "log":
+                msg += " (p and q are polynomials in log x)"
         else:
             att, rf, ver = self._closest()
             if ver is not None:
