@@ -110,7 +110,8 @@ class RationalFitter(Estimator):
         The variable p and q are polynomials in. "log": log x (1-D, positive
         x; recorded in the fit, so evaluation and files stay correct; no
         monomial form or code export). "auto": a search on positive 1-D data
-        spanning more than three decades fits in log x first, then in x below
+        spanning more than three decades (a tenth of the points more than three
+        decades below the largest x) fits in log x first, then in x below
         that total, and keeps the smaller verified fit (sqrt on 1e-15..1 needs
         10 coefficients in log x at 10 %, and has no fit up to 100 in x);
         otherwise x.
@@ -223,7 +224,11 @@ class RationalFitter(Estimator):
         plain = (type(self)._make_system is RationalFitter._make_system
                  and type(self)._verify is RationalFitter._verify)
         if (self.variable != "auto" or not plain or seg.dim != 1 or self.n is not None
-                or self.total is not None or dom[0, 0] <= 0 or dom[0, 1] / dom[0, 0] < 1e3):
+                or self.total is not None or dom[0, 0] <= 0):
+            return None
+        # Many decades means many points there: a tenth of them more than three decades
+        # below the largest x (one point near 0 on a linear grid does not count).
+        if float(np.quantile(seg.x[:, 0], 0.1)) * 1e3 > float(dom[0, 1]):
             return None
         return PolynomialSpace(space.family.name, dom, space.index_set, space.max_degree,
                                variable="log")
