@@ -102,3 +102,27 @@ def test_fit_is_physical_where_the_data_is_sparse() -> None:
     assert chk is not None and chk.valid and chk.min_q > 0 and chk.min_r >= 0
     again = check_validity(fitter.result_.rational, P, points=600_000)
     assert again.valid
+
+
+def test_constant_coordinate_is_dropped_and_recorded(tmp_path) -> None:
+    """Cornell-style Cartesian pairs with L in the x-z plane: ly is constant, the fit
+    drops it, says so in the fit file, and evaluation on full coordinates works."""
+    from ratfit.brdf.fitter import load_brdf_fit, save_brdf_fit
+
+    rng = np.random.default_rng(3)
+    tl, tv = rng.uniform(0, 1.3, 300), rng.uniform(0, 1.3, 300)
+    pv = rng.uniform(-np.pi, np.pi, 300)
+    L = np.stack([np.sin(tl), np.zeros(300), np.cos(tl)], axis=1)
+    V = np.stack([np.sin(tv) * np.cos(pv), np.sin(tv) * np.sin(pv), np.cos(tv)], axis=1)
+    cart = get_parametrization("CARTESIAN")
+    x = cart.from_dirs(L, V)
+    y = (0.3 + 0.1 * V[:, 2])[:, None]
+    ds = Dataset(x, y, None, None, cart.coords, ("R",), {"param_in": "CARTESIAN"})
+    fitter, seg, meta = fit_brdf(ds, dt=0.05, max_total=8)
+    assert fitter.success_, fitter.result_.message
+    assert meta["dropped_coords"] == {"4": 0.0} and seg.dim == 5
+    path = tmp_path / "fit.json"
+    save_brdf_fit(path, fitter.results_, meta)
+    fit = load_brdf_fit(path)
+    assert fit.dropped == (4,)
+    assert np.allclose(fit.eval_coords(x)[:, 0], y[:, 0], rtol=0.06)

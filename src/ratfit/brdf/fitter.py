@@ -109,10 +109,27 @@ def fit_brdf(ds: Dataset, *, dt: float | None = None, abs_width: float | None = 
     :attr:`BRDFFitter.positive_q`. ``brdf_meta`` is the ``"brdf"`` block of
     the fit file.
     """
-    seg = nonnegative_segments(brdf_segments(ds, dt=dt, abs_width=abs_width,
-                                             floor_rel=floor_rel, cosine=cosine, clamp=clamp))
+    from ratfit.core.columns import constant_axes
+
+    full = ds
+    dropped = constant_axes(ds.x) if ds.n_points > 1 else np.arange(0)
+    keep = np.setdiff1d(np.arange(ds.x.shape[1]), dropped)
+    if dropped.size:
+        if keep.size == 0:
+            raise InputError(f"{ds.source}: every coordinate is constant: nothing to fit")
+        # A constant coordinate carries no information (Cornell's L lies in one plane):
+        # fit the others; the fit file records the dropped ones so evaluation ignores them.
+        ds = replace(ds, x=ds.x[:, keep],
+                     input_names=tuple(ds.input_names[i] for i in keep) if ds.input_names
+                     else ())
+    seg = nonnegative_segments(brdf_segments(full if cosine else ds, dt=dt,
+                                             abs_width=abs_width, floor_rel=floor_rel,
+                                             cosine=cosine, clamp=clamp))
+    if cosine and dropped.size:
+        seg = Segments(ds.x, seg.lo, seg.hi, seg.y, seg.names)
     fitter = BRDFFitter(parametrization=str(ds.meta.get("param_in", "UNKNOWN")),
                         positive_q=bool(positive_q), **fitter_params)
+    fitter._keep = None if not dropped.size else keep
     fitter.fit(seg)
     meta = {
         "parametrization": str(ds.meta.get("param_in", "UNKNOWN")),
@@ -123,6 +140,11 @@ def fit_brdf(ds: Dataset, *, dt: float | None = None, abs_width: float | None = 
         "param_out": ds.meta.get("param_out"),
         "channel_names": list(seg.names),
         "segments": {"dt": dt, "abs_width": abs_width, "floor_rel": floor_rel},
+        # a fit of a random subset is verified on that subset only
+        "verified_on": ("all samples" if not ds.meta.get("subset") else
+                        f"a random subset of {ds.meta['subset']['points']} of "
+                        f"{ds.meta['subset']['of']} samples"),
+        "dropped_coords": {str(int(i)): float(full.x[0, i]) for i in dropped},
         # what "verified" covered beyond the samples, per channel
         "validity": [None if v is None else v.summary() for v in fitter.validity_],
     }
@@ -218,8 +240,8 @@ class BRDFFitter(RationalFitter):
             key = (str(self.parametrization), space.domain.tobytes())
             cache = getattr(self, "_conf_cache", None)
             if cache is None or cache[0] != key:
-                cache = self._conf_cache = (key, configurations(self.parametrization,
-                                                                space.domain))
+                cache = self._conf_cache = (key, configurations(
+                    self.parametrization, space.domain, keep=getattr(self, "_keep", None)))
             grid = cache[1]
         else:
             grid = self._valid_grid_for(space.domain) if space.dim > 1 else None
@@ -254,7 +276,7 @@ class BRDFFitter(RationalFitter):
             return ver
         if rf.space.dim == 1 and ver.poles_in_domain:
             return ver
-        chk = check_validity(rf, self.parametrization)
+        chk = check_validity(rf, self.parametrization, keep=getattr(self, "_keep", None))
         if chk is None:
             return ver  # unknown parametrization: the plain box check decides
         if not hasattr(self, "_checks"):
@@ -412,6 +434,7 @@ class BRDFFit:
     parametrization: str
     cosine_weighted: bool = False
     fold_phi_d: bool = False
+    dropped: tuple[int, ...] = ()  # constant coordinates the fit does not use
 
     @property
     def n_channels(self) -> int:
@@ -426,6 +449,8 @@ class BRDFFit:
         if self.fold_phi_d:
             c = c.copy()
             c[:, 2] = np.mod(c[:, 2], np.pi)
+        if self.dropped:
+            c = np.delete(c, list(self.dropped), axis=1)
         return self.saved(c)
 
     def eval_coords(self, coords: ArrayLike) -> Array:
@@ -466,10 +491,11 @@ def load_brdf_fit(path: str | os.PathLike[str]) -> BRDFFit:
             "(written by `ratfit fit`, not `ratfit brdf fit`)"
         )
     p = get_parametrization(str(meta["parametrization"]))
-    if p.dim != saved.space.dim:
+    dropped = tuple(sorted(int(k) for k in (meta.get("dropped_coords") or {})))
+    if p.dim - len(dropped) != saved.space.dim:
         raise FileFormatError(
             f"{path}: parametrization {p.name} has {p.dim} coordinates but the fit has "
             f"{saved.space.dim} inputs"
         )
     return BRDFFit(saved, p.name, bool(meta.get("cosine_weighted", False)),
-                   bool(meta.get("fold_phi_d", False)))
+                   bool(meta.get("fold_phi_d", False)), dropped)

@@ -526,6 +526,7 @@ def brdf_dataset(
     idx = np.arange(n)
     if max_points is not None and max_points < n:
         idx = np.sort(np.random.default_rng(seed).choice(n, size=max_points, replace=False))
+        meta["subset"] = {"points": int(max_points), "of": int(n)}
     coords, values = coords[idx], values[idx]
     if lo is not None:
         lo, hi = lo[idx][:, keep], hi[idx][:, keep]

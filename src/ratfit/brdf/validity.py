@@ -92,7 +92,7 @@ def angle_grid(k: int, points: int, offset: bool = False) -> Array:
 
 
 def configurations(param: str, domain: ArrayLike, points: int = 60_000,
-                   offset: bool = False) -> Array | None:
+                   offset: bool = False, keep: ArrayLike | None = None) -> Array | None:
     """Coordinates of direction pairs above the horizon that fall inside ``domain``.
 
     None when the parametrization is unknown (then nothing says what is valid).
@@ -101,9 +101,10 @@ def configurations(param: str, domain: ArrayLike, points: int = 60_000,
     if p is None:
         return None
     dom = np.asarray(domain, dtype=float).reshape(-1, 2)
-    if dom.shape[0] != p.dim:
+    cols = np.arange(p.dim) if keep is None else np.asarray(keep, dtype=np.int64)
+    if dom.shape[0] != cols.size:
         return None
-    c = _coords(p, angle_grid(_n_angles(p), points, offset))
+    c = _coords(p, angle_grid(_n_angles(p), points, offset))[:, cols]
     c = c[_inside(c, dom)]
     return np.clip(c, dom[:, 0], dom[:, 1])
 
@@ -126,23 +127,26 @@ class ValidityCheck:
 
 
 def check_validity(rf: RationalFunction, param: str, domain: ArrayLike | None = None,
-                   points: int = 150_000, starts: int = 24) -> ValidityCheck | None:
+                   points: int = 150_000, starts: int = 24,
+                   keep: ArrayLike | None = None) -> ValidityCheck | None:
     """Dense, adaptive check that q > 0 and p >= 0 on valid configurations in ``domain``.
 
     A grid of direction pairs offset from :func:`configurations`' (so the
     constraint grid proves nothing here), then a compass search in angle space
     from the ``starts`` lowest values of q and of p, each step halving down to
     1e-4 of the grid step. None when the parametrization is unknown.
+    ``keep``: the coordinates the fit uses (constant ones dropped), in order.
     """
     p = _param(param)
     if p is None:
         return None
+    cols = np.arange(p.dim) if keep is None else np.asarray(keep, dtype=np.int64)
     dom = rf.space.domain if domain is None else np.asarray(domain, dtype=float)
     k = _n_angles(p)
     a = angle_grid(k, points, offset=True)
-    c = _coords(p, a)
-    keep = _inside(c, dom)
-    a, c = a[keep], np.clip(c[keep], dom[:, 0], dom[:, 1])
+    c = _coords(p, a)[:, cols]
+    inside = _inside(c, dom)
+    a, c = a[inside], np.clip(c[inside], dom[:, 0], dom[:, 1])
     if len(c) == 0:
         return ValidityCheck(True, 0, np.inf, np.inf, np.zeros((0, dom.shape[0])),
                              "no direction pair in the domain")
@@ -159,7 +163,7 @@ def check_validity(rf: RationalFunction, param: str, domain: ArrayLike | None = 
     for use_q, vals in ((True, q / qs), (False, pv / (qs * rs))):
         pick = np.argsort(vals)[: min(starts, len(vals))]
         pts, best = _compass(rf, p, dom, a[pick], vals[pick], step, sign, qs,
-                             qs * rs, use_q=use_q)
+                             qs * rs, use_q=use_q, cols=cols)
         checked += pts
         found.append(best)
     bad = np.concatenate(found) if found else np.zeros((0, dom.shape[0]))
@@ -178,7 +182,8 @@ def check_validity(rf: RationalFunction, param: str, domain: ArrayLike | None = 
 
 
 def _compass(rf: RationalFunction, p: Parametrization, dom: Array, a0: Array, v0: Array,
-             step: Array, sign: float, qs: float, ps: float, use_q: bool) -> tuple[int, Array]:
+             step: Array, sign: float, qs: float, ps: float, use_q: bool,
+             cols: Array) -> tuple[int, Array]:
     """Lower q (or p) from each start by compass moves in angle space; returns
     (evaluations, coordinates of the non-positive values reached)."""
     b = _bounds(a0.shape[1])
@@ -190,7 +195,7 @@ def _compass(rf: RationalFunction, p: Parametrization, dom: Array, a0: Array, v0
     bad: list[Array] = []
 
     def value(pts: Array) -> tuple[Array, Array]:
-        c = _coords(p, pts)
+        c = _coords(p, pts)[:, cols]
         ok = _inside(c, dom)
         c = np.clip(np.nan_to_num(c), dom[:, 0], dom[:, 1])
         q = sign * rf.denominator(c)

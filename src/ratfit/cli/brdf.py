@@ -22,6 +22,9 @@ def _split_channels(values: tuple[str, ...]) -> list[str]:
     return [c.strip() for v in values for c in v.split(",") if c.strip()]
 
 
+_ISOTROPIC_DEFAULT = {"CARTESIAN": "ISOTROPIC_TV_TL_DPHI"}
+
+
 @brdf_group.command("fit")
 @click.argument("input_path", metavar="INPUT", type=click.Path(dir_okay=False, path_type=Path))
 @click.option("-o", "--output", type=click.Path(dir_okay=False, path_type=Path),
@@ -68,6 +71,17 @@ def brdf_fit(input_path: Path, output: Path | None, fmt: str | None, param: str 
         param = get_parametrization(param).name
     ds = brdf_dataset(input_path, param, fmt=fmt, channels=_split_channels(channels) or None,
                       color=color, max_points=max_points)
+    own = str(ds.meta.get("param_in"))
+    if param is None and own in _ISOTROPIC_DEFAULT:
+        # 6-D Cartesian pairs of an isotropic material (Cornell files): 3-D angles carry
+        # the same information with no constant column and far fewer coefficients.
+        param = _ISOTROPIC_DEFAULT[own]
+        ds = brdf_dataset(input_path, param, fmt=fmt,
+                          channels=_split_channels(channels) or None, color=color,
+                          max_points=max_points)
+        if not as_json:
+            click.echo(f"parametrization: {param} (chosen for the file's {own}; "
+                       "--param overrides)", err=True)
     cb, stop = _progress(not as_json)
     try:
         fitter, seg, meta = fit_brdf(
@@ -104,7 +118,12 @@ def brdf_fit(input_path: Path, output: Path | None, fmt: str | None, param: str 
         _write_json(doc)
     else:
         _print_report(results, output if ok and output else None)
-        click.echo(f"parametrization {meta['parametrization']}, {seg.n_points} samples")
+        click.echo(f"parametrization {meta['parametrization']}, {seg.n_points} samples"
+                   + (f"; verified on {meta['verified_on']} only (--max-points)"
+                      if ds.meta.get("subset") else ""))
+        if meta.get("dropped_coords"):
+            click.echo("constant coordinates dropped (recorded in the fit): "
+                       + ", ".join(f"#{k} = {v:.6g}" for k, v in meta["dropped_coords"].items()))
         for name, v in zip(seg.names, meta.get("validity") or [], strict=False):
             if v:
                 click.echo(f"{name}: physical check: {v}")
