@@ -65,7 +65,8 @@ def _side_path(output: Path, tag: str) -> Path:
               help="Measured BRDF file: render it (interpolated) with the same camera, light, "
                    "samples and exposure, and write the difference.")
 @click.option("--exposure", type=float, default=None,
-              help="PNG scale (default: the fit image's 99.5th percentile maps to 1).")
+              help="PNG scale (default: the 99.5th luminance percentile of the brighter of the "
+                   "fit and data renders maps to 1).")
 @click.option("--seed", type=int, default=0, show_default=True)
 @click.option("--variant", type=click.Choice(["auto", "llvm_ad_rgb", "scalar_rgb"]),
               default="auto", show_default=True, help="Mitsuba variant.")
@@ -122,22 +123,21 @@ def render_cmd(fit_path: Path, output: Path, scene: str, spp: int, size: int, sa
                        scene=scene, seed=seed, progress=say, label="fit")
     info["render_seconds"] = time.perf_counter() - t0
     hit, _ = sphere_view(size)
-    lum = img[hit] @ np.array([0.2126, 0.7152, 0.0722])
-    scale = exposure if exposure is not None else 1.0 / max(float(np.quantile(lum, 0.995)),
-                                                              1e-12)
-    info["exposure"] = scale
+    luma = np.array([0.2126, 0.7152, 0.0722])
     if not np.all(np.isfinite(img)):
         raise InputError("the render has non-finite pixels (the fit has a pole?)")
     outputs = {}
+    shown = [img]
     if ref is None:
         outputs[output] = img
     else:
         # the data is sampled with the fit's sampler: any pdf gives the same expectation
         dimg = render_image(ref, size=size, spp=spp, sampling=sampling, sampler=sampler,
                             scene=scene, seed=seed, progress=say, label="data")
+        shown.append(dimg)
         diff = img - dimg
         a, b = img[hit], dimg[hit]
-        la, lb = a @ np.array([0.2126, 0.7152, 0.0722]), b @ np.array([0.2126, 0.7152, 0.0722])
+        la, lb = a @ luma, b @ luma
         info["data"] = str(data)
         info["difference"] = {
             "pixels": int(hit.sum()),
@@ -150,6 +150,10 @@ def render_cmd(fit_path: Path, output: Path, scene: str, spp: int, size: int, sa
         outputs[output] = np.concatenate([img, gap, dimg, gap, np.abs(diff)], axis=1)
         outputs[_side_path(output, "diff")] = diff if output.suffix.lower() == ".exr" \
             else np.abs(diff)
+    # one exposure for every image: the brighter render's 99.5th percentile maps to 1
+    top = max(float(np.quantile(im[hit] @ luma, 0.995)) for im in shown)
+    scale = exposure if exposure is not None else 1.0 / max(top, 1e-12)
+    info["exposure"] = scale
     for path, im in outputs.items():
         _write(mi, path, im, scale)
     info["outputs"] = [str(p) for p in outputs]

@@ -44,13 +44,22 @@ def environment_map(width: int = 256) -> NDArray[np.float32]:
     return img
 
 
-def _scene_dict(mi, bsdf, scene: str, size: int) -> dict:
+INTEGRATORS = {
+    "path": {"type": "path", "max_depth": 2},  # direct light, MIS of emitter and BSDF samples
+    "bsdf": {"type": "direct", "emitter_samples": 0, "bsdf_samples": 1},  # BSDF samples only
+}
+
+
+def _scene_dict(mi, bsdf, scene: str, size: int, integrator: str = "path") -> dict:
     if scene not in SCENES:
         raise InputError(f"unknown scene {scene!r}; choose one of {', '.join(SCENES)}")
+    if integrator not in INTEGRATORS:
+        raise InputError(f"unknown integrator {integrator!r}; choose one of "
+                         f"{', '.join(INTEGRATORS)}")
     T = mi.ScalarTransform4f
     d: dict = {
         "type": "scene",
-        "integrator": {"type": "path", "max_depth": 2},
+        "integrator": dict(INTEGRATORS[integrator]),
         "sensor": {
             "type": "perspective", "fov": 28.0,
             "to_world": T().look_at(origin=[0.0, 0.0, 4.5], target=[0.0, 0.0, 0.0],
@@ -93,11 +102,14 @@ def sphere_view(size: int) -> tuple[NDArray[np.bool_], Array]:
 
 def render_image(material, *, size: int = 256, spp: int = 64, sampling: str = "fit",
                  sampler=None, scene: str = "sphere", seed: int = 0, passes: int | None = None,
-                 progress: Callable[[str], None] | None = None, label: str = "render") -> Array:
+                 progress: Callable[[str], None] | None = None, label: str = "render",
+                 integrator: str = "path") -> Array:
     """Render ``material`` (``f(L, V) -> (N, 3)``) in a standard scene; (size, size, 3) linear.
 
     The spp are split into passes (independent seeds, averaged) so a long render
-    reports progress through ``progress`` after each pass.
+    reports progress through ``progress`` after each pass. ``integrator``: "path"
+    (MIS of light and BSDF samples) or "bsdf" (BSDF samples only: what a sampler
+    alone achieves).
     """
     from ratfit.render.mitsuba_bsdf import _import_mitsuba, make_bsdf, setup
 
@@ -106,7 +118,7 @@ def render_image(material, *, size: int = 256, spp: int = 64, sampling: str = "f
     setup()
     mi, _ = _import_mitsuba()
     bsdf = make_bsdf(material, sampler, sampling)
-    sc = mi.load_dict(_scene_dict(mi, bsdf, scene, int(size)))
+    sc = mi.load_dict(_scene_dict(mi, bsdf, scene, int(size), integrator))
     if passes is None:
         per = max(1, min(spp, (1 << 20) // max(1, size * size)))
         passes = -(-spp // per)
