@@ -43,9 +43,11 @@ def _side_path(output: Path, tag: str) -> Path:
 @click.option("-o", "--output", required=True, type=click.Path(dir_okay=False, path_type=Path),
               help="Image (.exr linear, or .png tonemapped). With --data: fit | data | |diff| "
                    "side by side; the difference alone goes to OUTPUT-diff.")
-@click.option("--scene", type=click.Choice(["sphere", "point", "sphere-point", "furnace"]),
+@click.option("--scene", type=click.Choice(["sphere", "sky", "point", "sphere-point",
+                                           "furnace"]),
               default="sphere", show_default=True,
-              help="sphere: environment light with a bright window; point: a point light; "
+              help="sphere: environment light with a bright window; sky: the same without the "
+                   "window; point: a point light; "
                    "furnace: constant white environment (pixels = albedo).")
 @click.option("--spp", type=click.IntRange(1, 1 << 16), default=64, show_default=True,
               help="Samples per pixel.")

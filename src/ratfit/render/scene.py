@@ -20,11 +20,12 @@ from ratfit.errors import InputError
 __all__ = ["SCENES", "environment_map", "render_image", "sphere_view", "stderr_progress"]
 
 Array = NDArray[np.float64]
-SCENES = ("sphere", "point", "sphere-point", "furnace")
+SCENES = ("sphere", "sky", "point", "sphere-point", "furnace")
 
 
-def environment_map(width: int = 256) -> NDArray[np.float32]:
-    """Lat-long RGB radiance (width/2, width, 3): sky, ground and a bright window."""
+def environment_map(width: int = 256, window: bool = True) -> NDArray[np.float32]:
+    """Lat-long RGB radiance (width/2, width, 3): sky, ground and (optionally) a bright
+    window."""
     h = width // 2
     v = (np.arange(h) + 0.5) / h  # 0 at the top (up = +y in Mitsuba's envmap frame)
     u = (np.arange(width) + 0.5) / width
@@ -40,7 +41,8 @@ def environment_map(width: int = 256) -> NDArray[np.float32]:
     # at d = (-0.67, 0.67, 0.33): the camera (on +z) sees it mirrored where the normal
     # is (-0.41, 0.41, 0.82), up and left of the sphere's centre.
     win = (np.abs(U - 0.677) < 0.045) & (np.abs(V - 0.268) < 0.06)
-    img[win] = np.array([40.0, 38.0, 34.0], dtype=np.float32)
+    if window:
+        img[win] = np.array([40.0, 38.0, 34.0], dtype=np.float32)
     return img
 
 
@@ -72,6 +74,8 @@ def _scene_dict(mi, bsdf, scene: str, size: int, integrator: str = "path") -> di
     }
     if scene in ("sphere", "sphere-point"):
         d["env"] = {"type": "envmap", "bitmap": mi.Bitmap(environment_map())}
+    if scene == "sky":  # smooth light only: image noise is the BSDF sampler's
+        d["env"] = {"type": "envmap", "bitmap": mi.Bitmap(environment_map(window=False))}
     if scene == "furnace":  # white furnace: radiance 1 everywhere, pixel = albedo
         d["env"] = {"type": "constant", "radiance": {"type": "rgb", "value": 1.0}}
     if scene in ("point", "sphere-point"):
