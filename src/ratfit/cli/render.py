@@ -133,8 +133,14 @@ def render_cmd(fit_path: Path, output: Path, scene: str, spp: int, size: int, sa
     if ref is None:
         outputs[output] = img
     else:
-        # the data is sampled with the fit's sampler: any pdf gives the same expectation
-        dimg = render_image(ref, size=size, spp=spp, sampling=sampling, sampler=sampler,
+        # the data gets its own sampler: a poor fit's lobes would leave the data's
+        # highlights to the cosine share of the mixture (unbiased, but speckled)
+        dsampler = None
+        if sampling == "fit":
+            say("fitting the sampling CDFs of the data ...")
+            dsampler = HalfVectorSampler(cosine_weight=cosine_weight, n_incidence=incidence_nodes,
+                                         n_conditional=conditional_nodes).fit(ref)
+        dimg = render_image(ref, size=size, spp=spp, sampling=sampling, sampler=dsampler,
                             scene=scene, seed=seed, progress=say, label="data")
         shown.append(dimg)
         diff = img - dimg
