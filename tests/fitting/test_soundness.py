@@ -220,3 +220,11 @@ def test_rational_in_x_beats_log_x_when_smaller() -> None:
     res = RationalFitter().fit(seg).result_
     assert res.success and (res.n, res.m) == (1, 2)
     assert res.rational.space.variable == "x"
+
+
+def test_one_point_near_zero_on_a_linear_grid_stays_in_x() -> None:
+    x = np.linspace(0.0, 1.0, 20)
+    x[0] = 2e-283  # spans 283 decades, but only one point is below 0.05
+    y = 3.0 + 0.1 * x
+    res = RationalFitter().fit(Segments.from_relative(x, y, 1e-3)).result_
+    assert res.success and res.rational.space.variable == "x" and res.n + res.m == 3

@@ -240,10 +240,10 @@ class RationalFitter(Estimator):
             return self._fit_channel(space, seg, j)
         lg = self._fit_channel(log_space, seg, j)
         if not lg.success:
-            return self._fit_channel(space, seg, j)
+            return self._fit_channel(space, seg, j, spent=lg.seconds)
         if lg.n + lg.m <= int(self.min_total):
             return lg
-        xs = self._fit_channel(space, seg, j, max_total=lg.n + lg.m - 1)
+        xs = self._fit_channel(space, seg, j, max_total=lg.n + lg.m - 1, spent=lg.seconds)
         return xs if xs.success else lg
 
     # -- extension points (subclasses: monotone CDFs, other formulations) ------------
@@ -332,11 +332,14 @@ class RationalFitter(Estimator):
         return self.active_set
 
     def _fit_channel(self, space: PolynomialSpace, seg: Segments, j: int,
-                     max_total: int | None = None) -> FitResult:
+                     max_total: int | None = None, spent: float = 0.0) -> FitResult:
         t0 = time.perf_counter()
         run = _Search(self, space, seg, j)
         if self.time_limit is not None:
-            run.deadline = t0 + float(self.time_limit)
+            # ``spent``: seconds this channel already used in another variable; the
+            # second search still gets a quarter of the budget.
+            limit = float(self.time_limit)
+            run.deadline = t0 + max(limit - spent, 0.25 * limit)
         if self.n is not None:
             lo_t = hi_t = int(self.n) + int(self.m)  # type: ignore[arg-type]
         elif self.total is not None:
