@@ -139,7 +139,7 @@ def test_white_furnace_render_is_the_albedo(variant, fit_mat, fit_sampler) -> No
     sub = 4
     hit_s, cos_s = sphere_view(size * sub)
     table_t = np.radians(np.linspace(0.0, 89.5, 180))
-    table = directional_albedo(fit_mat, table_t, n_mu=48, n_phi=96).albedo
+    table = directional_albedo(lambda L, V: fit_mat(V, L), table_t, n_mu=48, n_phi=96).albedo
     a_s = np.stack([np.interp(np.arccos(cos_s), table_t, table[:, j]) for j in range(3)], -1)
     blocks = a_s.reshape(size, sub, size, sub, 3).mean(axis=(1, 3))
     full = hit_s.reshape(size, sub, size, sub).all(axis=(1, 3))
