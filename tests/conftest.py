@@ -1,4 +1,4 @@
-"""Shared fixtures: where the real external data lives.
+"""Shared fixtures and helpers: where the real external data lives, running the CLI.
 
 CI has ``../shared`` beside the checkout; ``RATFIT_SHARED_DATA`` overrides the
 path of its ``data`` folder.
@@ -7,9 +7,11 @@ path of its ``data`` folder.
 from __future__ import annotations
 
 import os
+import re
 from pathlib import Path
 
 import pytest
+from click.testing import CliRunner, Result
 
 REPO = Path(__file__).resolve().parents[1]
 
@@ -28,3 +30,29 @@ def shared_data() -> Path:
             pytest.fail(msg)  # CI has the data beside the checkout: never skip there
         pytest.skip(msg)
     return path
+
+
+# ---------------------------------------------------------------------------- CLI helpers
+# Shared by the CLI, CDF and batch tests: ``from conftest import run_cli, one_error_line``.
+def run_cli(*args: object) -> Result:
+    """Run ``ratfit ARGS`` in-process (stdout and stderr kept apart, click >= 8.2)."""
+    from ratfit.cli import main
+
+    return CliRunner().invoke(main, [str(a) for a in args])
+
+
+def one_error_line(result: Result, *patterns: str) -> str:
+    """Bad input: exit 2, nothing on stdout, one ``error:`` line on stderr naming it.
+
+    Every regex in ``patterns`` must match that line (case-insensitive); returns it.
+    """
+    assert "Traceback" not in result.output, result.output
+    assert result.exit_code == 2, f"exit {result.exit_code}\n{result.output}"
+    lines = [ln for ln in result.stderr.splitlines() if ln.strip()]
+    assert len(lines) == 1, f"expected one stderr line, got {lines}"
+    line = lines[0]
+    assert line.startswith("error: "), line
+    for pat in patterns:
+        assert re.search(pat, line, re.IGNORECASE), f"{pat!r} not in {line!r}"
+    assert result.stdout == "", f"stdout on bad input: {result.stdout!r}"
+    return line

@@ -21,10 +21,10 @@ from typing import Any
 
 import numpy as np
 import pytest
-from click.testing import CliRunner, Result
+from click.testing import Result
+from conftest import one_error_line, run_cli
 
 from ratfit.batch import runner as batch
-from ratfit.cli import main
 from ratfit.core.segments import Segments
 from ratfit.core.verify import verify
 from ratfit.errors import InputError
@@ -295,17 +295,11 @@ BAD_MANIFESTS = [
 ]
 
 
-def cli(*args: object) -> Result:
-    return CliRunner().invoke(main, [str(a) for a in args])
+cli = run_cli
 
 
 def assert_exit2(result: Result, patterns: tuple[str, ...], out: Path) -> None:
-    assert result.exit_code == 2, f"exit {result.exit_code}\n{result.output}"
-    assert "Traceback" not in result.output
-    lines = [ln for ln in result.stderr.splitlines() if ln.strip()]
-    assert len(lines) == 1 and lines[0].lower().startswith("error:"), lines
-    for pat in patterns:
-        assert re.search(pat, lines[0]), f"{pat!r} not in {lines[0]!r}"
+    one_error_line(result, *patterns)
     assert not out.exists(), "bad input created the output folder"
 
 

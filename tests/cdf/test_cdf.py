@@ -3,12 +3,12 @@
 from __future__ import annotations
 
 import json
-import re
 from pathlib import Path
 
 import numpy as np
 import pytest
-from click.testing import CliRunner, Result
+from click.testing import Result
+from conftest import one_error_line, run_cli
 from scipy import integrate, optimize, stats
 
 from ratfit import RationalFitter
@@ -31,7 +31,6 @@ from ratfit.cdf.sampling import (
     ggx_theta_cdf,
     ggx_theta_pdf,
 )
-from ratfit.cli import main
 from ratfit.core.bases import PolynomialSpace
 from ratfit.errors import InputError
 
@@ -293,16 +292,11 @@ FIT_JSON_KEYS = {"n", "m", "total", "basis", "verified", "max_violation", "linf"
                  "output"}
 
 
-def cli(*args: object) -> Result:
-    return CliRunner().invoke(main, [str(a) for a in args])
+cli = run_cli
 
 
 def _assert_bad(result: Result, pattern: str, out: Path) -> None:
-    assert result.exit_code == 2, result.output
-    assert "Traceback" not in result.output
-    lines = [ln for ln in result.stderr.splitlines() if ln.strip()]
-    assert len(lines) == 1 and lines[0].lower().startswith("error:"), lines
-    assert re.search(pattern, lines[0], re.IGNORECASE), lines[0]
+    one_error_line(result, pattern)
     assert not out.exists()
     assert not any(p.name.startswith(f".{out.name}") for p in out.parent.iterdir())
 

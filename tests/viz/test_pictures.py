@@ -4,6 +4,7 @@ rational fit agrees with the sphere rendered from dense data within the fit's er
 from __future__ import annotations
 
 import json
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -130,3 +131,27 @@ def test_cli_plot_and_report(dense, tmp_path):
     r = runner.invoke(main, ["plot", str(fit), "--kind", "sphere", "--model", "phong", "-o",
                              str(out)])
     assert r.exit_code == 2 and "phong" in r.output and not out.exists()
+
+
+def test_drawing_leaves_the_users_matplotlib_backend_alone(tmp_path: Path) -> None:
+    """A notebook's backend survives importing ratfit's plotting code and saving PNGs."""
+    import subprocess
+    import sys
+
+    code = f"""
+import matplotlib
+matplotlib.use("pdf")
+import numpy as np
+import ratfit.viz.plots, ratfit.viz.pictures, ratfit.viz.plots_cdf, ratfit.viz.report
+from ratfit.viz.plots import plot_function
+from ratfit.viz.pictures import plot_spheres
+p = plot_function(np.linspace(0, 1, 50), np.linspace(0, 1, 50) ** 2, {str(tmp_path / 'f.png')!r})
+q = plot_spheres({{"a": np.full((16, 16, 3), 0.5)}}, {str(tmp_path / 's.png')!r})
+import sys
+print(matplotlib.get_backend(), "matplotlib.pyplot" in sys.modules)
+"""
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert out.stdout.split() == ["pdf", "False"], out.stdout + out.stderr
+    for name in ("f.png", "s.png"):
+        data = (tmp_path / name).read_bytes()
+        assert data[:8] == b"\x89PNG\r\n\x1a\n" and len(data) > 1000, name

@@ -549,6 +549,17 @@ class BatchSummary:
     def ok(self) -> bool:
         return all(r["status"] == "ok" for r in self.rows)
 
+    @property
+    def success(self) -> bool:
+        """The result vocabulary's name for ``ok``: every task has a verified fit."""
+        return self.ok
+
+    @property
+    def message(self) -> str:
+        c = self.counts
+        return (f"{len(self.rows)} task(s): {c['ok']} ok, {c['no-fit']} without a verified "
+                f"fit, {c['failed']} failed")
+
 
 def _fit_path(outdir: Path, task: Task) -> Path:
     return outdir / f"{task.name}.json"

@@ -47,6 +47,18 @@ class AlbedoResult:
     def ok(self) -> bool:
         return not bool(self.flagged.any())
 
+    @property
+    def success(self) -> bool:
+        """The result vocabulary's name for ``ok`` (albedo <= 1 + tol everywhere)."""
+        return self.ok
+
+    @property
+    def message(self) -> str:
+        if self.ok:
+            return f"albedo <= 1 + {self.tol:g} at every incidence (max {self.max_albedo:.4g})"
+        return (f"albedo above 1 + {self.tol:g} at {int(self.flagged.sum())} incidence(s) "
+                f"(max {self.max_albedo:.4g}): not energy conserving")
+
     def to_dict(self) -> dict:
         return {
             "theta_i_deg": np.degrees(self.theta_i).round(6).tolist(),

@@ -144,17 +144,37 @@ def _shell(dim: int, s: int, index_set: str) -> list[tuple[int, ...]]:
 class PolynomialSpace:
     """A polynomial family on ``domain`` (d intervals), mapped affinely to [-1,1]^d.
 
+    Working on [-1, 1]^d keeps the basis well conditioned whatever the data's units.
+
     Parameters
     ----------
-    family : "legendre", "chebyshev" or "monomial".
-    domain : (d, 2) array of [min, max] per input dimension.
-    index_set : "total" (graded by total degree) or "tensor" (by max degree).
-    max_degree : optional per-axis degree caps (see :func:`multi_indices`);
-        an axis capped at 0 is one the function does not depend on.
-    variable : "x" (default) or "log" (1-D, positive domain): the window is
-        the affine image of log x, so p and q are polynomials in log x. Data
-        spanning many decades (sqrt on 1e-15..1) is then smooth and small in t,
-        where polynomials in x would need a denominator whose values span 1e180.
+    family : {"legendre", "chebyshev", "monomial"}
+        Basis family (:data:`FAMILIES`).
+    domain : array-like of shape (d, 2)
+        [min, max] per input dimension.
+    index_set : {"total", "tensor"}, default "total"
+        Graded by total degree or by max degree (n-D).
+    max_degree : sequence of int, optional
+        Per-axis degree caps (see :func:`multi_indices`); an axis capped at 0
+        is one the function does not depend on.
+    variable : {"x", "log"}, default "x"
+        "log" (1-D, positive domain): the window is the affine image of log x,
+        so p and q are polynomials in log x. Data spanning many decades (sqrt on
+        1e-15..1) is then smooth and small in t, where polynomials in x would
+        need a denominator whose values span 1e180.
+
+    Attributes
+    ----------
+    family : Family
+    domain : ndarray of shape (d, 2)
+    index_set : str
+
+    Examples
+    --------
+    >>> from ratfit import PolynomialSpace
+    >>> s = PolynomialSpace("chebyshev", [[0.0, 10.0]])
+    >>> s.dim, s.to_window([0.0, 5.0, 10.0]).ravel().tolist()
+    (1, [-1.0, 0.0, 1.0])
     """
 
     def __init__(self, family: str, domain: ArrayLike, index_set: str = "total",

@@ -30,6 +30,22 @@ class RationalFunction:
     """r(x) = p(x) / q(x), with ``p``, ``q`` coefficient vectors in graded order.
 
     ``n = len(p)`` and ``m = len(q)`` count coefficients (degree n - 1 in 1-D).
+
+    Parameters
+    ----------
+    space : PolynomialSpace
+        Basis family, domain and index set of p and q.
+    p, q : array-like
+        Coefficients in the space's basis (or in ``p_basis`` / ``q_basis``).
+    p_basis, q_basis : ArnoldiBasis, optional
+        Data-orthonormal bases (the well-conditioned formulation's fits).
+
+    Examples
+    --------
+    >>> from ratfit import PolynomialSpace, RationalFunction
+    >>> r = RationalFunction(PolynomialSpace("monomial", [[-1.0, 1.0]]), [1.0], [2.0, 1.0])
+    >>> r([0.0, 1.0]).tolist()   # 1 / (2 + t)
+    [0.5, 0.3333333333333333]
     """
 
     def __init__(self, space: PolynomialSpace, p: ArrayLike, q: ArrayLike, *,

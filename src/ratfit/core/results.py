@@ -23,6 +23,37 @@ STATUS_MESSAGES = {
 
 @dataclass(frozen=True)
 class FitResult:
+    """One channel's fit: what was found, how well it is verified, how it was decided.
+
+    Attributes
+    ----------
+    success : bool
+        True only when the fit is verified (every segment met, no pole).
+    status : int
+        0 verified, 1 no verified fit in the search range, 2 a fit failed verification.
+    message : str
+        One line saying what happened.
+    n, m : int
+        Numerator and denominator coefficient counts (``total`` = n + m).
+    rational : RationalFunction or None
+        The fit (None when no candidate was computed).
+    verification : Verification or None
+        Its check at every input point.
+    delta, sigma_min, sigma_max : float
+        Conditioning of the deciding QP (delta = 1 / cond(A)).
+    history : tuple of dict
+        Every split tested, with its status and deciding method.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> import ratfit
+    >>> x = np.linspace(0, 1, 30)
+    >>> res = ratfit.fit(ratfit.Segments.from_relative(x, np.exp(x), 1e-3))
+    >>> res.success, res.summary()["verified"], res.message
+    (True, True, 'verified fit found')
+    """
+
     success: bool
     status: int
     message: str

@@ -22,9 +22,38 @@ __all__ = ["Segments", "check_points", "check_values"]
 class Segments:
     """Points ``x`` (N, d) with bounds ``lo``, ``hi`` (N, k) for k channels.
 
-    ``y`` (N, k) is the measured value when known (used for reports and relative
-    errors); it is ``None`` for explicit-interval data without a centre value.
-    Build with :meth:`from_relative`, :meth:`from_absolute` or :meth:`from_bounds`.
+    The one gatekeeper for array input: everything downstream trusts that the
+    arrays are finite, shaped, and ordered (lo <= hi). Build with
+    :meth:`from_widths` (relative and/or absolute widths around y),
+    :meth:`from_relative`, :meth:`from_absolute` or :meth:`from_bounds`.
+
+    Parameters
+    ----------
+    x : array-like of shape (N,) or (N, d)
+        Points.
+    lo, hi : array-like of shape (N,) or (N, k)
+        Segment bounds per channel.
+    y : array-like of shape (N, k), optional
+        Measured values (reports, relative errors); None for bare intervals.
+    names : tuple of str, optional
+        Channel names (default y0, y1, ...).
+
+    Attributes
+    ----------
+    n_points, dim, n_channels : int
+    center : ndarray of shape (N, k)
+        y when known, else the midpoints.
+
+    Examples
+    --------
+    >>> from ratfit import Segments
+    >>> s = Segments.from_relative([0.0, 1.0, 2.0], [1.0, -2.0, 4.0], 0.1)
+    >>> s.n_points, s.dim, s.n_channels, s.lo[:, 0].tolist()
+    (3, 1, 1, [0.9, -2.2, 3.6])
+    >>> Segments([0.0, 1.0], [1.0, 3.0], [2.0, 2.5])
+    Traceback (most recent call last):
+    ...
+    ratfit.errors.InputError: lo > hi in 1 segment(s); first at row 1, channel 0: lo=3.0 > hi=2.5
     """
 
     x: NDArray[np.float64]
@@ -93,6 +122,7 @@ class Segments:
 
         Examples
         --------
+        >>> from ratfit import Segments
         >>> s = Segments.from_widths([0, 1, 2], [0.0, 1.0, 10.0], dt=0.1, abs_width=0.5)
         >>> s.lo[:, 0].tolist(), s.hi[:, 0].tolist()
         ([-0.5, 0.5, 9.0], [0.5, 1.5, 11.0])

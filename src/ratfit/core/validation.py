@@ -110,7 +110,7 @@ def check_order(lo: Array, hi: Array, where: str | None = None) -> None:
         raise InputError(_at(
             where,
             f"lo > hi in {int(bad.sum())} segment(s); first at row {i}, channel {j}: "
-            f"lo={lo2[i, j]!r} > hi={hi2[i, j]!r}",
+            f"lo={float(lo2[i, j])!r} > hi={float(hi2[i, j])!r}",
         ))
 
 

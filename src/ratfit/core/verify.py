@@ -23,7 +23,32 @@ _GRID_POINTS = 200_000
 
 @dataclass(frozen=True)
 class Verification:
-    """Outcome of evaluating r at every input point and checking q for poles."""
+    """Outcome of evaluating r at every input point and checking q for poles.
+
+    ``verified`` (also ``success``) is True only when every segment is met
+    and q has no zero in the domain; ``message`` says why not in one line.
+
+    Attributes
+    ----------
+    verified : bool
+    max_violation : float
+        Largest distance outside a segment (inf where r is not finite).
+    max_violation_rel : float
+        The same divided by the segment width.
+    n_violations, poles_in_domain : int
+    linf, max_rel_error : float
+        max |r - y| and max |r - y| / |y| (y != 0).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from ratfit import PolynomialSpace, RationalFunction, Segments, verify
+    >>> x = np.linspace(-1, 1, 11)
+    >>> r = RationalFunction(PolynomialSpace("monomial", [[-1.0, 1.0]]), [1.0], [2.0, 1.0])
+    >>> v = verify(r, Segments.from_relative(x, 1 / (2 + x), 0.01))
+    >>> v.success, v.max_violation, v.message
+    (True, 0.0, 'every segment met, no pole in the domain')
+    """
 
     verified: bool
     max_violation: float  # >= 0; largest distance outside a segment (inf if r non-finite)
@@ -39,6 +64,26 @@ class Verification:
     max_rel_error: float  # max |r - y| / |y| over points with y != 0
     n_points: int
 
+    @property
+    def success(self) -> bool:
+        """The result vocabulary's name for ``verified``."""
+        return bool(self.verified)
+
+    @property
+    def message(self) -> str:
+        """One line: verified, or the first reason it is not."""
+        if self.verified:
+            return "every segment met, no pole in the domain"
+        why = []
+        if self.n_violations:
+            why.append(f"{self.n_violations} segment(s) missed by up to "
+                       f"{self.max_violation:.3g}")
+        if self.poles_in_domain:
+            why.append(f"{self.poles_in_domain} pole(s) in the domain")
+        if self.denominator_sign_changes and not self.poles_in_domain:
+            why.append("the denominator changes sign in the domain")
+        return "; ".join(why) or "not verified"
+
     def to_dict(self) -> dict:
         d = asdict(self)
         d["pole_locations"] = list(self.pole_locations)
@@ -46,7 +91,30 @@ class Verification:
 
 
 def verify(rf: RationalFunction, seg: Segments, *, channel: int = 0) -> Verification:
-    """Evaluate ``rf`` at every point of ``seg`` (one channel) and check poles."""
+    """Evaluate ``rf`` at every point of ``seg`` (one channel) and check poles.
+
+    Non-finite values count as violations (q = 0 at a data point is a miss).
+
+    Parameters
+    ----------
+    rf : RationalFunction
+    seg : Segments
+    channel : int, default 0
+        Which channel's segments.
+
+    Returns
+    -------
+    Verification
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from ratfit import PolynomialSpace, RationalFunction, Segments, verify
+    >>> r = RationalFunction(PolynomialSpace("monomial", [[-1.0, 1.0]]), [1.0], [0.0, 1.0])
+    >>> v = verify(r, Segments.from_absolute(np.linspace(-1, 1, 5), np.ones(5), 0.1))
+    >>> v.verified, v.poles_in_domain     # 1 / t: a pole at 0
+    (False, 1)
+    """
     lo, hi = seg.lo[:, channel], seg.hi[:, channel]
     y = seg.center[:, channel]
     q = rf.denominator(seg.x)

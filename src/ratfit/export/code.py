@@ -70,6 +70,15 @@ class ExportResult:
     forms: tuple[ChannelForm, ...]
     parametrization: str | None
 
+    @property
+    def success(self) -> bool:
+        """Always True: an export that cannot be made raises instead."""
+        return True
+
+    @property
+    def message(self) -> str:
+        return "; ".join(self.describe())
+
     def describe(self) -> list[str]:
         """One line per channel: the form used and why (for CLI output)."""
         return [f"channel {f.name}: {f.form} ({f.reason})" for f in self.forms]

@@ -81,6 +81,19 @@ class Certificate:
     numerical: bool = False
 
     @property
+    def success(self) -> bool:
+        """The result vocabulary's name for ``checked``: the certificate holds."""
+        return bool(self.checked)
+
+    @property
+    def message(self) -> str:
+        what = f"no rational with n={self.n}, m={self.m} fits these segments"
+        if not self.checked:
+            return f"candidate certificate for ({self.n}, {self.m}) did not check out"
+        exact = " (checked in exact arithmetic)" if self.exact else ""
+        return f"{what}: Farkas weights on {len(self.points)} segment(s){exact}"
+
+    @property
     def margin_bound(self) -> float:
         """No c with ||c||_2 = 1 has min_j (An c)_j above this (0 when exact)."""
         return 0.0 if self.exact else self.residual

@@ -45,6 +45,20 @@ class DenseCheck:
     def inside(self) -> bool:
         return self.finite and self.n_violations == 0
 
+    @property
+    def success(self) -> bool:
+        """The result vocabulary's name for ``inside``."""
+        return self.inside
+
+    @property
+    def message(self) -> str:
+        if self.inside:
+            return f"inside the band at all {self.points} dense points"
+        if not self.finite:
+            return "not finite somewhere on the dense grid (a pole)"
+        return (f"{self.n_violations} of {self.points} dense points outside the band, by up "
+                f"to {self.max_violation:.3g}")
+
     def summary(self) -> dict:
         return {
             "dense_points": self.points, "dense_max_rel_error": self.max_rel_error,
@@ -113,6 +127,11 @@ class DenseFit:
     @property
     def success(self) -> bool:
         return self.result.success and self.check.inside
+
+    @property
+    def message(self) -> str:
+        """One line: the fit's message, then the dense check's."""
+        return f"{self.result.message}; {self.check.message} after {self.rounds} round(s)"
 
 
 def fit_dense(fn: Callable[[Array], Array], x: ArrayLike, *, dt: float | None = None,

@@ -362,7 +362,28 @@ class RationalFitter(Estimator):
 
 
 def fit(segments: Segments, **params) -> FitResult:
-    """Functional shortcut: ``RationalFitter(**params).fit(segments).result_``."""
+    """Functional shortcut: ``RationalFitter(**params).fit(segments).result_`` (one channel).
+
+    Parameters
+    ----------
+    segments : Segments
+        One channel (several: use :class:`RationalFitter` and ``results_``).
+    **params
+        :class:`RationalFitter` parameters.
+
+    Returns
+    -------
+    FitResult
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> import ratfit
+    >>> x = np.linspace(0, 1, 30)
+    >>> r = ratfit.fit(ratfit.Segments.from_relative(x, 1 / (1 + x), 1e-3))
+    >>> r.success, r.n, r.m
+    (True, 1, 2)
+    """
     return RationalFitter(**params).fit(segments).result_
 
 

@@ -53,6 +53,14 @@ class ToleranceResult:
         return self.fit is not None and self.fit.success
 
     @property
+    def message(self) -> str:
+        """One line: the width found and how the width below it is known to fail."""
+        if not self.success:
+            return "no verified fit of this size at any width tried"
+        proof = "certified infeasible" if self.lower_certified else "not certified"
+        return f"verified fit at width {self.width:.6g}; {self.lower:.6g} is {proof}"
+
+    @property
     def lower_certified(self) -> bool:
         return self.certificate is not None and self.certificate.checked
 

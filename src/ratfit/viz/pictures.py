@@ -47,12 +47,10 @@ BRDFFunction = Callable[[Array, Array], Array]
 
 # ---------------------------------------------------------------------------- plumbing
 def _plt():
-    import matplotlib
+    """Figure factory on a private Agg canvas: the user's pyplot backend is left alone."""
+    from ratfit.viz import _figures
 
-    matplotlib.use("Agg", force=True)
-    import matplotlib.pyplot as plt
-
-    return plt
+    return _figures
 
 
 def _save(fig, path: str | Path, dpi: int = 100) -> Path:

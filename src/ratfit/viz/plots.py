@@ -1,4 +1,4 @@
-"""Headless PNG figures (matplotlib, Agg backend), written atomically."""
+"""Headless PNG figures (matplotlib figures on their own Agg canvas), written atomically."""
 
 from __future__ import annotations
 
@@ -15,12 +15,10 @@ __all__ = ["plot_errors", "plot_fits", "plot_function"]
 
 
 def _figure():
-    import matplotlib
+    """Figure factory on a private Agg canvas: the user's pyplot backend is left alone."""
+    from ratfit.viz import _figures
 
-    matplotlib.use("Agg", force=True)
-    import matplotlib.pyplot as plt
-
-    return plt
+    return _figures
 
 
 def _save(fig, path: Path) -> Path:
