@@ -227,46 +227,6 @@ def sample_cmd(fit_path: Path, count: int, seed: int | None, output: Path | None
 
 
 # ---------------------------------------------------------------------------- demo cdf
-def run_demo_cdf(outdir: Path, *, alpha: float = 0.3, samples: int = 100_000,
-                 seed: int = 0) -> dict[str, Any]:
-    """Beckmann lobe: tabulated pdf of cos(theta_h) -> monotone CDF fit -> samples -> PNG."""
-    from scipy import stats
-
-    from ratfit.cdf.monotone import MonotoneFitter, cdf_from_pdf
-    from ratfit.cdf.sampling import RationalCDF, beckmann_cos_cdf, beckmann_cos_pdf
-    from ratfit.io.fitfile import fit_document, save_fit
-    from ratfit.viz.plots_cdf import plot_cdf_fit
-
-    mu = np.linspace(0.0, 1.0, 513)
-    seg = cdf_from_pdf(mu, beckmann_cos_pdf(mu, alpha), abs_width=5e-4)
-    fitter = MonotoneFitter(grid=200).fit(seg)
-    res = fitter.result_
-    out: dict[str, Any] = {"fitter": fitter, "result": res}
-    if not res.success:
-        return out
-    model = RationalCDF(res.rational)
-    draws = model.sample(samples, np.random.default_rng(seed))
-    ks = stats.kstest(draws, lambda v: beckmann_cos_cdf(v, alpha))
-    fig = plot_cdf_fit(
-        model, seg, draws, outdir / "cdf_beckmann.png",
-        true_pdf=lambda v: beckmann_cos_pdf(v, alpha),
-        true_cdf=lambda v: beckmann_cos_cdf(v, alpha),
-        xlabel="cos(theta_h)",
-        title=f"Beckmann lobe, alpha = {alpha}: cos(theta_h), rational CDF "
-              f"n={res.n}, m={res.m}",
-    )
-    fit_file = outdir / "cdf_beckmann.json"
-    save_fit(fit_file, fit_document(fitter.results_, provenance={
-        "input": f"demo: Beckmann pdf of cos(theta_h), alpha={alpha}, 513 points",
-        "cdf": {"from": "pdf", "dt": None, "abs_width": 5e-4, "confidence": None,
-                "form": "two-row", "grid": 200, "domain": [model.a, model.b],
-                "r_domain": [model.r_a, model.r_b]},
-    }))
-    out.update(ks_statistic=float(ks.statistic), ks_pvalue=float(ks.pvalue), figure=fig,
-               fit_file=fit_file, samples=samples, seed=seed, alpha=alpha)
-    return out
-
-
 @demo_group.command("cdf")
 @aliased_option("-o", "--output", "outdir", hidden=["--outdir"],
                 type=click.Path(file_okay=False, path_type=Path),
@@ -275,6 +235,8 @@ def run_demo_cdf(outdir: Path, *, alpha: float = 0.3, samples: int = 100_000,
 @click.option("--json", "as_json", is_flag=True, help="Print one JSON object on stdout.")
 def demo_cdf(outdir: Path, as_json: bool) -> None:
     """Fit the CDF of a Beckmann lobe (cos theta_h), sample it, plot pdf, histogram, CDF."""
+    from ratfit.demos.cdf import run_demo_cdf
+
     run = run_demo_cdf(outdir)
     fitter, res = run["fitter"], run["result"]
     doc = cdf_json(fitter, run.get("fit_file"))
