@@ -24,6 +24,9 @@ ENTRY_POINTS = [
     "ratfit.brdf.BRDFFitter",
     "ratfit.fitting.SharedDenominatorFitter",
     "ratfit.io.save_fit",
+    "ratfit.io.load_fit",
+    "ratfit.io.read_data",
+    "ratfit.cdf.fit_cdf",
     "ratfit.core.segments.Segments.from_widths",
     "ratfit.core.estimator.Estimator",
 ]

@@ -477,7 +477,30 @@ class MonotoneFitter(RationalFitter):
 
 
 def fit_cdf(segments: Segments, **params):
-    """``MonotoneFitter(**params).fit(segments).result_`` (a FitResult)."""
+    """Fit one monotone CDF: ``MonotoneFitter(**params).fit(segments).result_``.
+
+    Parameters
+    ----------
+    segments : Segments
+        One channel of CDF intervals (:func:`cdf_from_pdf`, :func:`cdf_from_table`,
+        :func:`cdf_from_samples`, :func:`cdf_from_bounds`).
+    **params
+        :class:`MonotoneFitter` parameters.
+
+    Returns
+    -------
+    FitResult
+        A success only when :func:`verify_cdf` passed (monotone, in [0, 1]).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from ratfit.cdf import cdf_from_pdf, fit_cdf
+    >>> x = np.linspace(0, 1, 50)
+    >>> res = fit_cdf(cdf_from_pdf(x, 2 * x, abs_width=1e-3), grid=50)
+    >>> res.success, res.verification.monotone
+    (True, True)
+    """
     return MonotoneFitter(**params).fit(segments).result_
 
 

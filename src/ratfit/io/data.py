@@ -173,8 +173,31 @@ def _check_finite(
 def read_data(path: _PathLike, *, fmt: str | None = None, dim: int | None = None) -> Dataset:
     """Read a data file, guessing its format from content/extension when ``fmt`` is None.
 
-    ``dim`` is the number of input columns of a header-less CSV; for formats that
-    declare it (ALTA ``#DIM``, NIST, NPZ) it must agree with the file.
+    Parameters
+    ----------
+    path : str or path-like
+        ALTA text data, CSV, ``.npz`` or NIST StRD ``.dat``.
+    fmt : {"alta", "csv", "npz", "nist"}, optional
+        Format (default: from the content and extension).
+    dim : int, optional
+        Input columns of a header-less CSV; for formats that declare it (ALTA
+        ``#DIM``, NIST, NPZ) it must agree with the file.
+
+    Returns
+    -------
+    Dataset
+        Points, values and/or intervals; ``.segments(dt=..., abs_width=...)``
+        builds the fitting segments.
+
+    Examples
+    --------
+    >>> import os, tempfile
+    >>> from ratfit.io import read_data
+    >>> path = os.path.join(tempfile.mkdtemp(), "d.csv")
+    >>> _ = open(path, "w").write("x,y\\n0,1\\n1,2\\n2,4\\n")
+    >>> ds = read_data(path)
+    >>> ds.x[:, 0].tolist(), ds.segments(dt=0.5).hi[:, 0].tolist()
+    ([0.0, 1.0, 2.0], [1.5, 3.0, 6.0])
     """
     src = str(path)
     if fmt is not None:

@@ -192,7 +192,29 @@ def _as_results(fit: Any) -> list[FitResult]:
 
 
 def load_fit(path: str | os.PathLike[str]) -> SavedFit:
-    """Read a fit file, checking its format, version and internal consistency."""
+    """Read a fit file, checking its format, version and internal consistency.
+
+    Parameters
+    ----------
+    path : str or path-like
+
+    Returns
+    -------
+    SavedFit
+        Callable on points (values of every channel); ``channels[j].rational``.
+
+    Examples
+    --------
+    >>> import numpy as np, tempfile, os
+    >>> from ratfit import RationalFitter, Segments
+    >>> from ratfit.io import load_fit, save_fit
+    >>> x = np.linspace(1, 2, 20)
+    >>> path = os.path.join(tempfile.mkdtemp(), "fit.json")
+    >>> save_fit(path, RationalFitter().fit(Segments.from_relative(x, 1 / x, 1e-3)))
+    >>> saved = load_fit(path)
+    >>> bool(abs(saved([1.5])[0, 0] - 1 / 1.5) < 1e-3)
+    True
+    """
     p = Path(path)
     if not p.is_file():
         raise FileFormatError(f"{p}: no such fit file")
