@@ -1,4 +1,4 @@
-"""The documentation runs: README's Python blocks and the public API's examples.
+"""The documentation runs: README's Python section and the public API's examples.
 
 The README's Python section is executed as written (in a scratch folder), and
 every public entry point carries a numpydoc docstring whose Examples pass.
@@ -39,8 +39,10 @@ def _python_blocks(text: str) -> list[str]:
 
 
 def test_readme_python_section_runs_as_written(tmp_path: Path, monkeypatch) -> None:
-    blocks = _python_blocks(README.read_text())
-    assert blocks, "README.md has no ```python block"
+    sections = {part.split("\n", 1)[0].strip(): part
+                for part in ("\n" + README.read_text()).split("\n## ")[1:]}
+    blocks = _python_blocks(sections["Python"])
+    assert blocks, "README.md's Python section has no ```python block"
     monkeypatch.chdir(tmp_path)
     ns: dict = {"__name__": "__readme__"}
     for i, code in enumerate(blocks):

@@ -495,9 +495,9 @@ def fit_cdf(segments: Segments, **params):
     Examples
     --------
     >>> import numpy as np
-    >>> from ratfit.cdf import cdf_from_pdf, fit_cdf
-    >>> x = np.linspace(0, 1, 50)
-    >>> res = fit_cdf(cdf_from_pdf(x, 2 * x, abs_width=1e-3), grid=50)
+    >>> from ratfit.cdf import cdf_from_table, fit_cdf
+    >>> x = np.linspace(0, 1, 40)
+    >>> res = fit_cdf(cdf_from_table(x, x**2, abs_width=1e-3), grid=50)
     >>> res.success, res.verification.monotone
     (True, True)
     """
