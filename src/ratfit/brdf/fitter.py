@@ -32,7 +32,7 @@ from ratfit.core.segments import Segments
 from ratfit.core.validation import check_width
 from ratfit.core.verify import Verification, verify
 from ratfit.errors import FileFormatError, InputError
-from ratfit.fitting.search import RationalFitter
+from ratfit.fitting.search import RationalFitter, SearchParts, SystemFactory
 from ratfit.io.data import Dataset
 from ratfit.io.fitfile import SavedFit, fit_document, load_fit, save_fit
 
@@ -229,9 +229,19 @@ class BRDFFitter(RationalFitter):
         ]
         return self
 
+    def _search_parts(self, space: PolynomialSpace, seg: Segments) -> SearchParts:
+        parts = super()._search_parts(space, seg)
+        # q > 0 is generated where a BRDF is evaluated: the valid configurations.
+        # With ``physical`` or ``positive_q`` the split systems carry those rows already.
+        grid = self._valid_grid_for(space.domain) if space.dim > 1 else None
+        pole_grid = space.to_window(grid) if grid is not None and grid.size else None
+        return SearchParts(systems=_BRDFSystems(self, parts.systems), verifier=self._verify,
+                           pole_free=not (self.physical or self.positive_q),
+                           pole_grid=pole_grid)
+
     def _split_system(self, space: PolynomialSpace, seg: Segments, j: int, n: int, m: int,
                       like: ConstraintSystem | None = None) -> ConstraintSystem | None:
-        system = super()._split_system(space, seg, j, n, m, like=like)
+        system = super()._search_parts(space, seg).systems.split(space, seg, j, n, m, like=like)
         if not (self.physical or self.positive_q) or not isinstance(system, ArnoldiSystem):
             return system
         from ratfit.brdf.validity import configurations
@@ -291,6 +301,19 @@ class BRDFFitter(RationalFitter):
         return replace(ver, verified=ok, denominator_sign_changes=chk.min_q <= 0)
 
 
+class _BRDFSystems:
+    """The fitter's system factory with the valid-grid q > 0 rows of ``positive_q``."""
+
+    def __init__(self, fitter: BRDFFitter, base: SystemFactory) -> None:
+        self.fitter, self.base, self.per_split = fitter, base, base.per_split
+
+    def channel(self, space: PolynomialSpace, seg: Segments, j: int):
+        return self.base.channel(space, seg, j)
+
+    def split(self, space: PolynomialSpace, seg: Segments, j: int, n: int, m: int, like=None):
+        return self.fitter._split_system(space, seg, j, n, m, like=like)
+
+
 class _ValidRows(ConstraintSystem):
     """An ArnoldiSystem plus, per valid configuration g, the row q(g) / |psi(g)| >= delta
     and (``numerator``) the row p(g) / |phi(g)| >= delta.
@@ -306,6 +329,7 @@ class _ValidRows(ConstraintSystem):
         # Counts the grid too: solve_fixed then always works on an active set
         # (a dense grid is mostly slack; all of it in one QP is slow).
         self.n_points = base.n_points + len(t_grid)
+        self.t = base.t
         self.n, self.m = base.n, base.m
         psi = base.q_basis.design(t_grid, base.m, window=True)
         self.psi = psi / np.linalg.norm(psi, axis=1)[:, None]
@@ -352,6 +376,9 @@ class _ValidRows(ConstraintSystem):
 
     def to_rational(self, n: int, m: int, c: Array) -> RationalFunction:
         return self.base.to_rational(n, m, c)
+
+    def q_design(self, t: Array, m: int) -> Array:
+        return self.base.q_design(t, m)
 
 
 def valid_grid(param: str, domain: ArrayLike, points: int = 200_000) -> Array | None:

@@ -41,12 +41,11 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from ratfit.core.bases import PolynomialSpace
-from ratfit.core.qp import ConstraintSystem
 from ratfit.core.rational import RationalFunction
 from ratfit.core.segments import Segments
 from ratfit.core.verify import Verification, verify
 from ratfit.errors import InputError
-from ratfit.fitting.search import RationalFitter
+from ratfit.fitting.search import RationalFitter, SearchParts, SeedSystems
 
 __all__ = [
     "DEFAULT_ABS_WIDTH",
@@ -142,7 +141,7 @@ def _check_monotone_feasible(x: Array, lo: Array, hi: Array, where: str = "segme
 
 
 # ----------------------------------------------------------------------------- the QP rows
-class MonotoneSystem(ConstraintSystem):
+class MonotoneSystem:
     """P(n, m) for a CDF: value rows plus derivative rows at every constraint point.
 
     Rows, for P constraint points with bounds [L, U] and value/derivative
@@ -175,7 +174,7 @@ class MonotoneSystem(ConstraintSystem):
             raise InputError("monotone CDF fitting is 1-D; use fit_cdf_2d for two variables")
         if form not in FORMS:
             raise InputError(f"unknown monotone form {form!r}; choose one of {', '.join(FORMS)}")
-        super().__init__(space, seg, channel)
+        self.space = space
         xd = seg.x[:, 0]
         lo_d, hi_d = seg.lo[:, channel], seg.hi[:, channel]
         _check_monotone_feasible(xd, lo_d, hi_d)
@@ -188,7 +187,7 @@ class MonotoneSystem(ConstraintSystem):
         self.n_data = seg.n_points
         self.z = z
         self.L, self.U = monotone_envelope(xd, lo_d, hi_d, z)
-        self.lo, self.hi = self.L, self.U  # what the parent's helpers read
+        self.lo, self.hi = self.L, self.U
         self.t = space.to_window(z)
         self.x = z[:, None]
         self.n_points = int(z.size)
@@ -197,7 +196,9 @@ class MonotoneSystem(ConstraintSystem):
         self._cum_d = self.D
         self._mono_lock = threading.Lock()
         self._k = 0
-        self._R = None
+        self._R: Array | None = None
+        self.B = np.zeros((self.n_points, 0))
+        self._cum_sq = self.B
 
     # -- sizes -------------------------------------------------------------------
     def prepare(self, n_max: int, m_max: int) -> None:
@@ -236,9 +237,6 @@ class MonotoneSystem(ConstraintSystem):
             acc = np.linalg.qr(block, mode="r")
         assert acc is not None
         return acc[: 2 * self._k] if acc.shape[0] > 2 * self._k else acc
-
-    def _tsqr(self) -> Array:  # the parent's name for the same thing
-        return self._qr_r()
 
     def conditioning(self, n: int, m: int) -> tuple[float, float, float]:
         """(delta, sigma_min, sigma_max) of the full A(n, m), derivative rows included."""
@@ -317,6 +315,20 @@ class MonotoneSystem(ConstraintSystem):
 
     def to_rational(self, n: int, m: int, c: Array) -> RationalFunction:
         return RationalFunction(self.space, c[:n], c[n:])
+
+    def q_design(self, t: Array, m: int) -> Array:
+        return self.space.design(t, m, window=True)
+
+
+class MonotoneSystems(SeedSystems):
+    """The engine's system factory for CDFs: one MonotoneSystem per channel
+    (the per-split Arnoldi form has no derivative rows)."""
+
+    def __init__(self, form: str, grid: int) -> None:
+        self.form, self.grid = form, int(grid)
+
+    def channel(self, space: PolynomialSpace, seg: Segments, j: int) -> MonotoneSystem:
+        return MonotoneSystem(space, seg, j, form=self.form, grid=self.grid)
 
 
 # ----------------------------------------------------------------------------- verification
@@ -460,20 +472,12 @@ class MonotoneFitter(RationalFitter):
             return True  # the max form *is* its starting active set
         return self.active_set
 
-    def _make_system(self, space: PolynomialSpace, seg: Segments, j: int) -> ConstraintSystem:
-        return MonotoneSystem(space, seg, j, form=self.form, grid=int(self.grid))
-
-    def _split_system(self, space: PolynomialSpace, seg: Segments, j: int, n: int,
-                      m: int, like: ConstraintSystem | None = None) -> ConstraintSystem | None:
-        """Always the shared MonotoneSystem (the per-split Arnoldi form has no
-        derivative rows)."""
-        return None
-
-    def _needs_shared_system(self, space: PolynomialSpace, seg: Segments) -> bool:
-        return True
-
-    def _verify(self, rf: RationalFunction, seg: Segments, j: int) -> CDFVerification:
-        return verify_cdf(rf, seg, channel=j, check_points=self.check_points)
+    def _search_parts(self, space: PolynomialSpace, seg: Segments) -> SearchParts:
+        return SearchParts(
+            systems=MonotoneSystems(self.form, int(self.grid)),
+            verifier=lambda rf, seg, j: verify_cdf(rf, seg, channel=j,
+                                                   check_points=self.check_points),
+        )
 
 
 def fit_cdf(segments: Segments, **params):

@@ -25,9 +25,11 @@ from ratfit.core.bases import PolynomialSpace
 from ratfit.core.rational import RationalFunction
 from ratfit.core.segments import Segments
 from ratfit.core.solvers import solve_qp
+from ratfit.core.systems import PositiveDenominator, RowSystem, denominator_cuts
 
 __all__ = [
     "ArnoldiSystem", "Attempt", "ConstraintSystem", "CROSS_CHECKS", "sk_denominator", "solve_fixed",
+    "solve_pole_free",
 ]
 
 Array = NDArray[np.float64]
@@ -35,6 +37,32 @@ CROSS_CHECKS = ("orth", "lp", "none")
 
 # Rows are written to the QR in chunks of this many points (bounded memory).
 _CHUNK = 32_768
+
+
+class ChannelPoints:
+    """One channel's data in the window: what several systems of it share.
+
+    Built once per channel and handed to each per-split system (large data:
+    the mapped points and their sort order are not recomputed).
+    """
+
+    def __init__(self, space: PolynomialSpace, seg: Segments, channel: int = 0) -> None:
+        self.space = space
+        self.x = seg.x
+        self.t = space.to_window(seg.x)
+        self.lo = np.ascontiguousarray(seg.lo[:, channel])
+        self.hi = np.ascontiguousarray(seg.hi[:, channel])
+        self.n_points = seg.n_points
+        self.order = np.lexsort(self.t.T[::-1])  # sorted along x0, then x1, ...
+
+    def spread_subset(self, size: int) -> NDArray[np.int64]:
+        """``size`` points spread along the data, plus the extreme segments."""
+        if size >= self.n_points:
+            return np.arange(self.n_points)
+        pick = self.order[np.linspace(0, self.n_points - 1, size).round().astype(np.int64)]
+        mid = 0.5 * (self.lo + self.hi)
+        extra = [np.argmax(mid), np.argmin(mid), np.argmin(self.hi - self.lo)]
+        return np.unique(np.concatenate([pick, np.asarray(extra, dtype=np.int64)]))
 
 
 class ConstraintSystem:
@@ -46,20 +74,19 @@ class ConstraintSystem:
     of the small matrix R[:, S] and no dense SVD of a tall matrix is needed.
     """
 
-    def __init__(self, space: PolynomialSpace, seg: Segments, channel: int = 0) -> None:
+    def __init__(self, space: PolynomialSpace, seg: Segments, channel: int = 0, *,
+                 points: ChannelPoints | None = None) -> None:
+        self.points = points if points is not None else ChannelPoints(space, seg, channel)
         self.space = space
-        self.x = seg.x
-        self.t = space.to_window(seg.x)
-        self.lo = np.ascontiguousarray(seg.lo[:, channel])
-        self.hi = np.ascontiguousarray(seg.hi[:, channel])
-        self.n_points = seg.n_points
+        self.x, self.t = self.points.x, self.points.t
+        self.lo, self.hi = self.points.lo, self.points.hi
+        self.n_points = self.points.n_points
+        self._order = self.points.order
         self._k = 0
         self.B = np.zeros((self.n_points, 0))
         self._cum_sq = self.B
         self._R: Array | None = None
         self._lock = threading.Lock()
-        order = np.lexsort(self.t.T[::-1])  # sorted along x0, then x1, ...
-        self._order = order
 
     # -- sizes ------------------------------------------------------------------
     def prepare(self, n_max: int, m_max: int) -> None:
@@ -93,11 +120,8 @@ class ConstraintSystem:
     def columns(self, n: int, m: int) -> NDArray[np.int64]:
         return np.r_[np.arange(n), self._k + np.arange(m)]
 
-    # -- the matrix, by rows ----------------------------------------------------
-    # Row r < N is the lo-row of point r, row N + r its hi-row. Subclasses that
-    # add rows (derivative constraints, extra grid points) override n_rows,
-    # rows, row_norms, residuals, initial_rows and _tsqr; solve_fixed uses
-    # nothing else.
+    # -- the matrix, by rows (the RowSystem protocol) ---------------------------
+    # Row r < N is the lo-row of point r, row N + r its hi-row.
     @property
     def n_rows(self) -> int:
         return 2 * self.n_points
@@ -130,6 +154,9 @@ class ConstraintSystem:
     def to_rational(self, n: int, m: int, c: Array) -> RationalFunction:
         return RationalFunction(self.space, c[:n], c[n:])
 
+    def q_design(self, t: Array, m: int) -> Array:
+        return self.space.design(t, m, window=True)
+
     def conditioning(self, n: int, m: int) -> tuple[float, float, float]:
         """(delta, sigma_min, sigma_max) of the full A(n, m)."""
         with self._lock:  # a concurrent prepare() may be growing R
@@ -140,13 +167,7 @@ class ConstraintSystem:
         return _delta_from(s, (self.n_rows, cols.size))
 
     def spread_subset(self, size: int) -> NDArray[np.int64]:
-        """``size`` points spread along the data, plus the extreme segments."""
-        if size >= self.n_points:
-            return np.arange(self.n_points)
-        pick = self._order[np.linspace(0, self.n_points - 1, size).round().astype(np.int64)]
-        mid = 0.5 * (self.lo + self.hi)
-        extra = [np.argmax(mid), np.argmin(mid), np.argmin(self.hi - self.lo)]
-        return np.unique(np.concatenate([pick, np.asarray(extra, dtype=np.int64)]))
+        return self.points.spread_subset(size)
 
 
 @dataclass
@@ -167,6 +188,7 @@ class Attempt:
     sigma_max: float = float("nan")
     active_set_size: int = 0
     qp_solves: int = 0
+    pole_cuts: int = 0  # q > 0 rows generated (0: the plain QP's solution was pole-free)
     seconds: float = 0.0
     messages: list[str] = field(default_factory=list)
 
@@ -180,12 +202,13 @@ class Attempt:
             "solver_status": self.solver_status, "decided_by": self.decided_by,
             "formulation": self.formulation,
             "disagreement": self.disagreement, "qp_solves": self.qp_solves,
-            "active_set_size": self.active_set_size, "seconds": round(self.seconds, 6),
+            "active_set_size": self.active_set_size, "pole_cuts": self.pole_cuts,
+            "seconds": round(self.seconds, 6),
         }
 
 
 def solve_fixed(
-    system: ConstraintSystem,
+    system: RowSystem,
     n: int,
     m: int,
     *,
@@ -286,6 +309,55 @@ def _delta_from(s: Array, shape: tuple[int, int]) -> tuple[float, float, float]:
     return smin / smax, smin, smax
 
 
+def solve_pole_free(
+    system: RowSystem,
+    n: int,
+    m: int,
+    *,
+    cuts=denominator_cuts,
+    max_rounds: int = 40,
+    **solve_kw,
+) -> tuple[Attempt, RowSystem]:
+    """P(n, m) with q > 0 on the domain, by constraint generation.
+
+    Solve; while the solution's q is not positive on the domain (``cuts``
+    returns the window points where it is not: see
+    :func:`ratfit.core.systems.denominator_cuts`), add q > 0 rows there and
+    solve again. Returns the last attempt and the system it was solved on.
+    An "infeasible" with q rows is a pole-free infeasibility (every pole-free
+    solution satisfies the q rows too). ``pole_cuts`` counts the rows added.
+    """
+    att = solve_fixed(system, n, m, **solve_kw)
+    if att.c is None:
+        return att, system
+    z = cuts(system.to_rational(n, m, att.c))
+    if z.shape[0] == 0:
+        return att, system
+    guarded = PositiveDenominator(system, n, m)
+    spent, secs = att.qp_solves, att.seconds
+    for _ in range(max_rounds):
+        if guarded.add(z) == 0:
+            # q is not positive at points that already have rows: the solver's point
+            # (a cross check's, which ignores margins) does not meet them. No progress.
+            break
+        att = solve_fixed(guarded, n, m, **solve_kw)
+        spent += att.qp_solves
+        secs += att.seconds
+        att.qp_solves, att.seconds, att.pole_cuts = spent, secs, guarded.n_cuts
+        if att.c is None:
+            if att.status == "infeasible":
+                att.messages.append(
+                    f"no pole-free solution: infeasible with q > 0 at {guarded.n_cuts} "
+                    "point(s) of the domain")
+            return att, guarded
+        z = cuts(guarded.to_rational(n, m, att.c))
+        if z.shape[0] == 0:
+            return att, guarded
+    att.status = "failed"  # neither pole-free nor proved impossible: another form may decide
+    att.messages.append(f"q > 0 constraint generation stopped after {guarded.n_cuts} rows")
+    return att, guarded
+
+
 def _refine(A: Array, b: Array, x: Array, steps: int = 3) -> Array | None:
     """Iterative refinement of a solver's point that misses its constraints by
     rounding: residuals in extended precision (numpy longdouble), corrections
@@ -360,7 +432,7 @@ def _lp_margin(An: Array) -> Array | None:
     return np.asarray(res.x[:k])
 
 
-class ArnoldiSystem(ConstraintSystem):
+class ArnoldiSystem:
     """P(n, m) for one split in bases orthonormal on the weighted data.
 
     p = sum a_k phi_k and q = sum b_k psi_k, with phi orthonormal for the
@@ -379,13 +451,12 @@ class ArnoldiSystem(ConstraintSystem):
 
     def __init__(self, space: PolynomialSpace, seg: Segments, channel: int, n: int, m: int,
                  q0: Array | None = None, *, like: ConstraintSystem | None = None) -> None:
-        if like is not None:  # share the mapped points and their order (large data)
-            self.__dict__.update({k: like.__dict__[k] for k in (
-                "space", "x", "t", "lo", "hi", "n_points", "_order")})
-            self._k, self._R, self._lock = 0, None, threading.Lock()
-            self.B = self._cum_sq = np.zeros((self.n_points, 0))
-        else:
-            super().__init__(space, seg, channel)
+        self.points = like.points if like is not None else ChannelPoints(space, seg, channel)
+        self.space = space
+        self.x, self.t = self.points.x, self.points.t
+        self.lo, self.hi = self.points.lo, self.points.hi
+        self.n_points = self.points.n_points
+        self._order = self.points.order
         self.n, self.m = n, m
         self.scale = segment_scales(self.lo, self.hi)
         self.v = denominator_weights(q0, self.n_points)
@@ -432,6 +503,15 @@ class ArnoldiSystem(ConstraintSystem):
     def prepare(self, n_max: int, m_max: int) -> None:  # everything is built up front
         pass
 
+    @property
+    def n_rows(self) -> int:
+        return 2 * self.n_points
+
+    def initial_rows(self, size: int) -> NDArray[np.int64]:
+        """Both rows of ``size`` points spread along the data (all rows if small)."""
+        pts = self.points.spread_subset(size)
+        return np.concatenate([pts, self.n_points + pts])
+
     def conditioning(self, n: int, m: int) -> tuple[float, float, float]:
         self._check(n, m)
         return self._cond
@@ -460,6 +540,9 @@ class ArnoldiSystem(ConstraintSystem):
         self._check(n, m)
         return RationalFunction(self.space, c[:n], c[n:], p_basis=self.p_basis,
                                 q_basis=self.q_basis)
+
+    def q_design(self, t: Array, m: int) -> Array:
+        return self.q_basis.design(t, m, window=True)
 
 
 def denominator_weights(q0: Array | None, n_points: int) -> Array:

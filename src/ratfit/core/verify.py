@@ -14,11 +14,10 @@ from numpy.typing import NDArray
 
 from ratfit.core.rational import RationalFunction
 from ratfit.core.segments import Segments
+from ratfit.core.systems import domain_grid
 
 __all__ = ["Verification", "verify", "pole_check"]
 
-# Upper limit on the dense grid used for the n-D pole check.
-_GRID_POINTS = 200_000
 
 
 @dataclass(frozen=True)
@@ -178,11 +177,7 @@ def pole_check(
     poles: list[float] = []
     if space.dim == 1:
         poles = [float(v) for v in rf.real_poles_in_domain()]
-        grid = np.linspace(-1.0, 1.0, max(4001, 4 * len(x) + 1))
-    else:
-        per_dim = max(3, int(_GRID_POINTS ** (1.0 / space.dim)))
-        axes = [np.linspace(-1.0, 1.0, per_dim)] * space.dim
-        grid = np.stack([g.ravel() for g in np.meshgrid(*axes, indexing="ij")], axis=1)
+    grid = domain_grid(space.dim, len(x))  # the grid the q > 0 rows are generated on
     qg = rf.denominator(grid, window=True)
     vals = np.concatenate([np.ravel(q_at_x), np.ravel(qg)])
     if not np.all(np.isfinite(vals)):

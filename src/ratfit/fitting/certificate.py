@@ -363,7 +363,7 @@ _SEARCH_MAX_EXACT = 24
 
 def search_proof(run, time_limit: float = 60.0) -> dict | None:
     """The certificate summary for the largest infeasible split a search tried
-    (``run`` is a ``ratfit.fitting.search._Search``), or None when there is none or the
+    (``run`` is a ``ratfit.fitting.search.SearchEngine``), or None when there is none or the
     system is not one of the two standard formulations. When the decisive formulation
     gives no exact proof, the seed's basis form is tried too (its Farkas LP often
     resolves what HiGHS cannot in the weighted form at widths of 1e-12). The LPs
@@ -377,7 +377,7 @@ def search_proof(run, time_limit: float = 60.0) -> dict | None:
     att = run.cache[(n, m)][0]
     systems = []
     if att.formulation == "arnoldi":
-        systems.append(run.f._split_system(run.space, run.seg, run.channel, n, m))
+        systems.append(run.split_system(n, m))
     systems.append(run.system)
     best = None
     for system in systems:

@@ -13,12 +13,27 @@ form a staircase, and the minimal total is found by walking it:
    answer rules out the whole column below it, so each test is at total
    best - 1 and the walk costs O(best) QPs instead of ALTA's O(best^2).
 
-Split rule: among feasible splits of the minimal total, the walk meets the
-one with the fewest denominator coefficients m first (the closest to a
-polynomial: fewest candidate poles, cheapest to evaluate); that is the
-default ``split_rule="min-m"``. ``split_rule="error"`` tests every split of the
-minimal total and keeps the one whose values are most central in their
-segments (smallest max |r - y| / half-width).
+Split rule: among feasible splits of the minimal total, the one with the
+fewest denominator coefficients m (the closest to a polynomial: fewest
+candidate poles, cheapest to evaluate); that is the default
+``split_rule="min-m"``. After the walk every split of the minimal total with
+a smaller m that no proved infeasibility rules out is tested, so a split the
+walk stepped past (a solve that failed numerically) is not missed.
+
+Pole-freedom is part of feasibility: a QP solution whose q changes sign in
+the domain gets q > 0 rows there and is solved again
+(:func:`ratfit.core.qp.solve_pole_free`), so "infeasible" means "no pole-free
+solution", which is upward closed like plain feasibility.
+
+``split_rule="error"`` tests every split of the minimal total and keeps the
+one whose values are most central in their segments (smallest
+max |r - y| / half-width).
+
+The engine (:class:`SearchEngine`) is configured by collaborators
+(:class:`SearchParts`): a system factory (which row systems to solve), a
+verifier (what counts as success) and the pole guard (where q > 0 is
+generated). Subclasses of :class:`RationalFitter` supply theirs through
+``_search_parts``.
 
 Independent QPs (speculative tests of the next columns, all splits of one
 total) run in a thread pool: the solvers release the GIL.
@@ -31,9 +46,11 @@ import os
 import time
 from collections.abc import Callable, Iterable
 from concurrent.futures import ThreadPoolExecutor
+from dataclasses import dataclass
+from typing import Protocol
 
 import numpy as np
-from numpy.typing import ArrayLike
+from numpy.typing import ArrayLike, NDArray
 
 from ratfit.core.bases import PolynomialSpace
 from ratfit.core.estimator import Estimator
@@ -51,16 +68,22 @@ from ratfit.core.qp import (
     Attempt,
     ConstraintSystem,
     sk_denominator,
-    solve_fixed,
+    solve_pole_free,
 )
 from ratfit.core.rational import RationalFunction
 from ratfit.core.results import STATUS_MESSAGES, FitResult
 from ratfit.core.scaling import scale_segments, unscale_result, value_scales
 from ratfit.core.segments import Segments
+from ratfit.core.systems import RowSystem, denominator_cuts, domain_grid
 from ratfit.core.verify import Verification, verify
 from ratfit.errors import InputError
 
-__all__ = ["RationalFitter", "fit"]
+__all__ = [
+    "ArnoldiSystems", "RationalFitter", "SearchEngine", "SearchParts", "SeedSystems",
+    "SystemFactory", "fit", "verify_channel",
+]
+
+Array = NDArray[np.float64]
 
 
 
@@ -221,8 +244,7 @@ class RationalFitter(Estimator):
     def _log_space(self, space: PolynomialSpace, seg: Segments) -> PolynomialSpace | None:
         """The log-x space that variable="auto" also tries, or None."""
         dom = space.domain
-        plain = (type(self)._make_system is RationalFitter._make_system
-                 and type(self)._verify is RationalFitter._verify)
+        plain = type(self)._search_parts is RationalFitter._search_parts
         if (self.variable != "auto" or not plain or seg.dim != 1 or self.n is not None
                 or self.total is not None or dom[0, 0] <= 0):
             return None
@@ -246,33 +268,14 @@ class RationalFitter(Estimator):
         xs = self._fit_channel(space, seg, j, max_total=lg.n + lg.m - 1, spent=lg.seconds)
         return xs if xs.success else lg
 
-    # -- extension points (subclasses: monotone CDFs, other formulations) ------------
-    def _make_system(self, space: PolynomialSpace, seg: Segments, j: int) -> ConstraintSystem:
-        return ConstraintSystem(space, seg, j)
-
-    def _resolved_formulation(self, space: PolynomialSpace, seg: Segments) -> str:
+    # -- collaborators of the search engine (subclasses: monotone CDFs, BRDFs) ---------
+    def _search_parts(self, space: PolynomialSpace, seg: Segments) -> SearchParts:
+        """The engine's collaborators for this data: which systems, which verifier."""
         form = self.formulation
         if form == "auto":
             form = "arnoldi" if seg.dim == 1 or space.index_set == "total" else "basis"
-        return form
-
-    def _needs_shared_system(self, space: PolynomialSpace, seg: Segments) -> bool:
-        """Whether splits are solved on the shared system (prepared before threads)."""
-        return self._resolved_formulation(space, seg) != "arnoldi"
-
-    def _split_system(self, space: PolynomialSpace, seg: Segments, j: int, n: int,
-                      m: int, like: ConstraintSystem | None = None) -> ConstraintSystem | None:
-        """A system for one split only (None: use the shared one)."""
-        if self._resolved_formulation(space, seg) != "arnoldi":
-            return None
-        try:
-            q0 = sk_denominator(space, seg, j, n, m, like=like)
-            return ArnoldiSystem(space, seg, j, n, m, q0, like=like)
-        except InputError:
-            return None  # too few points for this many coefficients: the seed's form says so
-
-    def _verify(self, rf: RationalFunction, seg: Segments, j: int) -> Verification:
-        return verify(rf, seg, channel=j)
+        systems: SystemFactory = ArnoldiSystems() if form == "arnoldi" else SeedSystems()
+        return SearchParts(systems=systems, verifier=verify_channel)
 
     # -- fitting -----------------------------------------------------------------------
     def fit(self, segments: Segments) -> RationalFitter:
@@ -289,8 +292,9 @@ class RationalFitter(Estimator):
         log_space = self._log_space(space, segments)
         results = [self._fit_either(space, log_space, work, j)
                    for j in range(segments.n_channels)]
+        verifier = self._search_parts(space, segments).verifier
         self.results_ = [
-            unscale_result(r, segments, j, float(f), self._verify)
+            unscale_result(r, segments, j, float(f), verifier)
             for j, (r, f) in enumerate(zip(results, factors, strict=True))
         ]
         return self
@@ -334,7 +338,7 @@ class RationalFitter(Estimator):
     def _fit_channel(self, space: PolynomialSpace, seg: Segments, j: int,
                      max_total: int | None = None, spent: float = 0.0) -> FitResult:
         t0 = time.perf_counter()
-        run = _Search(self, space, seg, j)
+        run = SearchEngine(self, space, seg, j)
         if self.time_limit is not None:
             # ``spent``: seconds this channel already used in another variable; the
             # second search still gets a quarter of the budget.
@@ -359,6 +363,72 @@ class RationalFitter(Estimator):
         except _OutOfTime:
             return run.timed_out(lo_t, hi_t, time.perf_counter() - t0)
         return run.result(best, lo_t, hi_t, time.perf_counter() - t0)
+
+
+class SystemFactory(Protocol):
+    """Makes the row systems the engine solves (see :class:`ratfit.core.systems.RowSystem`)."""
+
+    #: True when ``split`` builds a system per split (the channel's system is then
+    #: only the fallback and is not prepared before threads).
+    per_split: bool
+
+    def channel(self, space: PolynomialSpace, seg: Segments, j: int) -> RowSystem:
+        """The system shared by every split of channel j (prepared to the largest size)."""
+        ...
+
+    def split(self, space: PolynomialSpace, seg: Segments, j: int, n: int, m: int,
+              like: RowSystem | None = None) -> RowSystem | None:
+        """A system for split (n, m) only, or None: use the channel's."""
+        ...
+
+
+class SeedSystems:
+    """The seed's matrix in the basis family, one system per channel."""
+
+    per_split = False
+
+    def channel(self, space: PolynomialSpace, seg: Segments, j: int) -> RowSystem:
+        return ConstraintSystem(space, seg, j)
+
+    def split(self, space: PolynomialSpace, seg: Segments, j: int, n: int, m: int,
+              like: RowSystem | None = None) -> RowSystem | None:
+        return None
+
+
+class ArnoldiSystems(SeedSystems):
+    """Per split, the weighted Arnoldi form (denominator guess from Sanathanan-Koerner);
+    the seed's matrix stays as the fallback when the weighted form fails."""
+
+    per_split = True
+
+    def split(self, space: PolynomialSpace, seg: Segments, j: int, n: int, m: int,
+              like: RowSystem | None = None) -> RowSystem | None:
+        try:
+            q0 = sk_denominator(space, seg, j, n, m, like=like)  # type: ignore[arg-type]
+            return ArnoldiSystem(space, seg, j, n, m, q0, like=like)  # type: ignore[arg-type]
+        except InputError:
+            return None  # too few points for this many coefficients: the seed's form says so
+
+
+def verify_channel(rf: RationalFunction, seg: Segments, j: int) -> Verification:
+    """The default verifier: every segment of channel j met, no pole in the domain."""
+    return verify(rf, seg, channel=j)
+
+
+@dataclass(frozen=True)
+class SearchParts:
+    """What configures the search engine besides the fitter's options.
+
+    ``systems`` builds the row systems, ``verifier`` decides success, and
+    ``pole_free`` turns on q > 0 constraint generation
+    (:func:`ratfit.core.qp.solve_pole_free`) on the domain grid, or on
+    ``pole_grid`` (window points) when given.
+    """
+
+    systems: SystemFactory
+    verifier: Callable[[RationalFunction, Segments, int], Verification]
+    pole_free: bool = True
+    pole_grid: Array | None = None
 
 
 def fit(segments: Segments, **params) -> FitResult:
@@ -394,16 +464,24 @@ def _is_int(v: object) -> bool:
 Candidate = tuple[Attempt, RationalFunction | None, Verification | None]
 
 
-class _Search:
-    """One channel's search state: cached attempts and their verifications."""
+class SearchEngine:
+    """One channel's search: cached attempts and their verifications.
 
-    def __init__(self, fitter: RationalFitter, space: PolynomialSpace, seg: Segments, j: int):
+    Options (solver, cross check, active set, jobs, callback, split rule) are
+    read from ``fitter``; the collaborators (system factory, verifier, pole
+    guard) from ``parts`` (default: ``fitter._search_parts``).
+    """
+
+    def __init__(self, fitter: RationalFitter, space: PolynomialSpace, seg: Segments, j: int,
+                 parts: SearchParts | None = None):
         self.f = fitter
         self.space = space
         self.seg = seg
         self.channel = j
-        self.system = fitter._make_system(space, seg, j)
+        self.parts = parts if parts is not None else fitter._search_parts(space, seg)
+        self.system = self.parts.systems.channel(space, seg, j)
         self.cache: dict[tuple[int, int], Candidate] = {}
+        self.second_opinion = False
         self.infeasible: list[tuple[int, int]] = []
         self.jobs = int(fitter.jobs or os.cpu_count() or 1)
         self.active_set = fitter._resolved_active_set()
@@ -411,37 +489,52 @@ class _Search:
         # distinct points, from the system's sort order (np.unique on rows is slow)
         srt = self.system.t[self.system._order]
         self.cap = 1 + int(np.count_nonzero(np.any(srt[1:] != srt[:-1], axis=1)))
+        grid = self.parts.pole_grid
+        if grid is None:
+            grid = domain_grid(space.dim, seg.n_points)
+        self.cuts = (lambda rf: denominator_cuts(rf, grid)) if self.parts.pole_free else (
+            lambda rf: np.zeros((0, space.dim)))
 
     # -- testing one split -----------------------------------------------------------
-    def _run(self, n: int, m: int) -> Candidate:
-        system = self.f._split_system(self.space, self.seg, self.channel, n, m,
-                                      like=self.system)
-        form = "arnoldi" if system is not None else "basis"
-        if system is None:
-            system = self.system
-            system.prepare(n, m)
-        att = solve_fixed(
-            system, n, m, solver=self.f.solver, cross_check=self.f.cross_check,
-            active_set=self.active_set,
+    def split_system(self, n: int, m: int) -> RowSystem | None:
+        """The per-split system of (n, m), or None when the channel's system serves."""
+        return self.parts.systems.split(self.space, self.seg, self.channel, n, m,
+                                        like=self.system)
+
+    def _solve(self, system: RowSystem, n: int, m: int, form: str) -> Candidate:
+        att, system = solve_pole_free(
+            system, n, m, cuts=self.cuts, solver=self.f.solver,
+            cross_check=self.f.cross_check, active_set=self.active_set,
         )
-        if form == "arnoldi" and att.status == "failed":
-            # A numerical failure in the weighted form: the seed's form decides.
-            self.system.prepare(n, m)
-            retry = solve_fixed(
-                self.system, n, m, solver=self.f.solver, cross_check=self.f.cross_check,
-                active_set=self.active_set,
-            )
-            if retry.status != "failed":
-                retry.messages = att.messages + retry.messages
-                retry.qp_solves += att.qp_solves
-                att, system, form = retry, self.system, "basis"
         att.formulation = form
         rf = ver = None
         c = att.c if att.c is not None else att.raw_c
         if c is not None:
             rf = system.to_rational(n, m, c)
-            ver = self.f._verify(rf, self.seg, self.channel)
+            ver = self.parts.verifier(rf, self.seg, self.channel)
         return att, rf, ver
+
+    def _seed(self, n: int, m: int) -> Candidate:
+        self.system.prepare(n, m)
+        return self._solve(self.system, n, m, "basis")
+
+    def _run(self, n: int, m: int) -> Candidate:
+        system = self.split_system(n, m)
+        if system is None:
+            return self._seed(n, m)
+        out = self._solve(system, n, m, "arnoldi")
+        att = out[0]
+        verified = out[2] is not None and out[2].verified
+        if att.status == "failed" or (self.second_opinion and not verified):
+            # A numerical failure in the weighted form (or, for a single split, any
+            # answer but a verified fit): the seed's form decides when it can.
+            retry = self._seed(n, m)
+            ok = retry[2] is not None and retry[2].verified
+            if ok or (att.status == "failed" and retry[0].status != "failed"):
+                retry[0].messages = att.messages + retry[0].messages
+                retry[0].qp_solves += att.qp_solves
+                return retry
+        return out
 
     def _effective(self, s: tuple[int, int]) -> tuple[int, int]:
         """Feasibility only sees values at the data: beyond as many coefficients
@@ -465,7 +558,7 @@ class _Search:
             raise _OutOfTime
         n_max = max(s[0] for s in todo)
         m_max = max(s[1] for s in todo)
-        if self.f._needs_shared_system(self.space, self.seg):
+        if not self.parts.systems.per_split:
             self.system.prepare(n_max, m_max)
         if self._parallel() and len(todo) > 1:
             ex = ThreadPoolExecutor(min(self.jobs, len(todo)))
@@ -508,6 +601,10 @@ class _Search:
 
     # -- strategies --------------------------------------------------------------------
     def fixed(self, n: int, m: int) -> list[tuple[int, int]]:
+        # One split: an answer other than a verified fit in the weighted form is
+        # worth the seed form's opinion too (each form finds fits the other misses
+        # near the feasibility boundary).
+        self.second_opinion = True
         self.test_many([(n, m)])
         return [(n, m)]
 
@@ -570,6 +667,18 @@ class _Search:
             splits = [(tot - k, k) for k in range(1, tot)]
             self.test_many(splits)
             return self._choose([s for s in splits if self.ok(s)])
+        # min-m: the walk reached the minimal total at column best[1], but a split
+        # with fewer denominator coefficients may still fit there (a candidate with
+        # poles, a failed solve or a speculative batch made the walk step past it).
+        # Every such split not ruled out by a proved infeasibility is tested, so the
+        # answer is the lowest-m feasible split of the total whatever the walk's path
+        # (and the number of threads) was.
+        lower = [(tot - k, k) for k in range(1, best[1]) if not self.ruled_out(tot - k, k)]
+        while lower:  # ascending m, `jobs` at a time, up to the first verified split
+            batch, lower = lower[: self._batch_width()], lower[self._batch_width():]
+            self.test_many(batch)
+            if any(self.ok(s) for s in batch):
+                break
         feasible = sorted((s for s in self.cache if s[0] + s[1] == tot and self.ok(s)),
                           key=lambda s: s[1])
         return feasible[:1]

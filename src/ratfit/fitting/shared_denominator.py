@@ -188,6 +188,9 @@ class SharedSystem:
         """The first channel (``rationals`` gives them all)."""
         return self.rationals(c)[0]
 
+    def q_design(self, t: Array, m: int) -> Array:
+        return self.q_basis.design(t, m, window=True)
+
 
 @dataclass
 class _Trial:
