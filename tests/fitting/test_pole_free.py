@@ -196,3 +196,36 @@ def test_every_constraint_system_implements_the_row_protocol():
     assert guard.add(np.array([[-0.5], [0.5]])) == 2 and guard.add(np.array([[0.5]])) == 0
     rows = guard.rows(3, 3, np.arange(arn.n_rows, guard.n_rows))
     assert np.all(rows[:, :3] == 0) and np.allclose(np.linalg.norm(rows, axis=1), 1)
+
+
+# ------------------------------------------------------------------ shared denominator
+def test_shared_denominator_is_pole_free_where_the_data_have_poles():
+    from ratfit.fitting.shared_denominator import SharedDenominatorFitter
+
+    x = np.linspace(-1, 1, 120)
+    t = np.tan(np.pi * x)
+    y = np.c_[t, 2 * t + 1]
+    h = 0.1 * np.abs(y).max(axis=0)
+    seg = Segments(x[:, None], y - h, y + h, y)
+    shared = SharedDenominatorFitter(max_m=6, max_n=8).fit(seg).result_
+    assert shared.success
+    assert any(h["pole_cuts"] > 0 for h in shared.history)
+    for j, res in enumerate(shared.results):
+        one = Segments(x[:, None], seg.lo[:, [j]], seg.hi[:, [j]], seg.y[:, [j]])
+        assert_pole_free_fit(res, one)
+
+
+# ------------------------------------------------------------------ min-m against exhaustive
+@settings(max_examples=8, deadline=None)
+@given(st.floats(1.05, 2.0), st.floats(-0.9, 0.9), st.sampled_from([0.05, 0.01, 0.002]))
+def test_staircase_min_m_equals_exhaustive(a, b, dt):
+    """The staircase's default split is the exhaustive search's: the same minimal
+    total and, among its feasible splits, the fewest denominator coefficients."""
+    x = np.linspace(-1, 1, 80)
+    y = np.exp(b * x) / (a - x) + 1 / (a + 0.3 + x**2)
+    seg = Segments.from_relative(x[:, None], y, dt)
+    stair = fit(seg, max_total=24)
+    ex = fit(seg, strategy="exhaustive", max_total=24)
+    assert stair.success and ex.success
+    assert (stair.n, stair.m) == (ex.n, ex.m)
+    assert_pole_free_fit(stair, seg)

@@ -48,11 +48,12 @@ from ratfit.core.qp import (
     denominator_weights,
     segment_scales,
     sk_denominator,
-    solve_fixed,
+    solve_pole_free,
 )
 from ratfit.core.rational import RationalFunction
 from ratfit.core.results import STATUS_MESSAGES, FitResult
 from ratfit.core.segments import Segments
+from ratfit.core.systems import denominator_cuts, domain_grid
 from ratfit.core.verify import Verification, verify
 from ratfit.errors import InputError
 from ratfit.fitting.search import RationalFitter
@@ -322,6 +323,8 @@ class _SharedSearch:
         self.lock = threading.Lock()
         # More coefficients than points cannot be independent on the data.
         self.cap = min(f.max_n, seg.n_points)
+        grid = domain_grid(space.dim, seg.n_points)
+        self.cuts = lambda rf: denominator_cuts(rf, grid)
 
     def test(self, n: Sizes, m: int) -> _Trial:
         key = (n, m)
@@ -336,8 +339,9 @@ class _SharedSearch:
             att = Attempt(sum(n), m, "failed", messages=[str(exc)])
             trial = _Trial(n, m, att, None, None)
         else:
-            att = solve_fixed(system, sum(n), m, solver=self.f.solver,
-                              cross_check=self.f.cross_check)
+            # pole-free like a single channel: q > 0 rows where the shared q is not
+            att, _ = solve_pole_free(system, sum(n), m, cuts=self.cuts,
+                                     solver=self.f.solver, cross_check=self.f.cross_check)
             att.formulation = "arnoldi-shared"
             c = att.c if att.c is not None else att.raw_c
             rats = vers = None
@@ -463,7 +467,8 @@ class _SharedSearch:
                 secs: float) -> SharedFit:
         qp = sum(t.att.qp_solves for t in self.cache.values())
         history = [{"n": list(t.n), "m": t.m, "status": t.att.status, "verified": t.ok,
-                    "decided_by": t.att.decided_by, "seconds": round(t.att.seconds, 6)}
+                    "decided_by": t.att.decided_by, "pole_cuts": t.att.pole_cuts,
+                    "seconds": round(t.att.seconds, 6)}
                    for t in self.cache.values()]
         disagreements = tuple(
             f"({list(t.n)},{t.m}): {t.att.disagreement}" for t in self.cache.values()
