@@ -233,11 +233,11 @@ class BRDFFitter(RationalFitter):
         parts = super()._search_parts(space, seg)
         # q > 0 is generated where a BRDF is evaluated: the valid configurations.
         # With ``physical`` or ``positive_q`` the split systems carry those rows already.
-        grid = self._valid_grid_for(space.domain) if space.dim > 1 else None
+        pole_free = not (self.physical or self.positive_q)
+        grid = self._valid_grid_for(space.domain) if pole_free and space.dim > 1 else None
         pole_grid = space.to_window(grid) if grid is not None and grid.size else None
         return SearchParts(systems=_BRDFSystems(self, parts.systems), verifier=self._verify,
-                           pole_free=not (self.physical or self.positive_q),
-                           pole_grid=pole_grid)
+                           pole_free=pole_free, pole_grid=pole_grid)
 
     def _split_system(self, space: PolynomialSpace, seg: Segments, j: int, n: int, m: int,
                       like: ConstraintSystem | None = None) -> ConstraintSystem | None:
