@@ -324,7 +324,7 @@ def test_cli_bad_usage_exit_2(tmp_path, monkeypatch):
     assert r.exit_code == 2 and "not with --scheduler" in r.stderr
     monkeypatch.setitem(sys.modules, "distributed", None)  # the extra is not installed
     assert_exit2(cli("batch", tmp_path / "m.json", "-o", out),
-                 (re.escape('pip install "ratfit[batch]"'), "distributed"), out)
+                 (re.escape('pip install ".[batch]"'), "distributed"), out)
 
 
 def test_cli_runs_on_an_existing_scheduler(client, shared_data, tmp_path):

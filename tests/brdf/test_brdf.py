@@ -41,6 +41,7 @@ from ratfit.core.verify import verify
 from ratfit.errors import FileFormatError, InputError
 from ratfit.io.alta_function import read_alta_function, write_alta_data, write_alta_function
 from ratfit.io.data import Dataset, read_data
+from ratfit.io.fitfile import save_fit
 
 KD = np.array([0.05, 0.08, 0.12])
 KS = np.array([0.6, 0.5, 0.4])
@@ -325,7 +326,7 @@ def test_cli_eval_bad_directions(tmp_path: Path) -> None:
     doc = json.loads(fit.read_text())
     del doc["brdf"]  # what `ratfit fit` writes
     plain = tmp_path / "plain.json"
-    plain.write_text(json.dumps(doc))
+    save_fit(plain, doc)  # sealed with its digest, as `ratfit fit` writes it
     res = run.invoke(main, ["brdf", "eval", str(plain), "--dirs", str(dirs)])
     assert res.exit_code == 2 and "not a BRDF fit" in res.output
 

@@ -118,7 +118,7 @@ def test_fit_file_round_trip_keeps_the_recurrence(tmp_path):
     back = parse_fit(json.loads(json.dumps(doc)))
     x = np.linspace(-3, 12, 777)
     assert np.array_equal(back.channels[0].rational(x), rf(x))
-    assert back.version == 2
+    assert back.version == 3 and back.integrity == "sealed"
 
 
 def test_formulation_validation():

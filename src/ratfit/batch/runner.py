@@ -77,7 +77,7 @@ __all__ = [
     "write_summary",
 ]
 
-INSTALL_HINT = 'pip install "ratfit[batch]"'
+INSTALL_HINT = 'pip install ".[batch]" (from the ratfit checkout)'
 ROWS_DIR = ".rows"
 SUMMARY_STEM = "summary"
 
@@ -667,9 +667,9 @@ def _cluster(client: Any, scheduler: str | None, workers: int | None, allowed_fa
     if scheduler is not None:
         try:
             own = Client(scheduler, timeout="10s")
-        except (OSError, TimeoutError) as exc:
-            raise InputError(f"cannot connect to the Dask scheduler at {scheduler}: {exc}") \
-                from None
+        except (OSError, TimeoutError, ValueError) as exc:  # ValueError: not an address
+            raise InputError(f"cannot connect to the Dask scheduler at {scheduler!r}: {exc} "
+                             "(give an address such as tcp://host:8786)") from None
         try:
             yield own
         finally:

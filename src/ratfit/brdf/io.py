@@ -403,7 +403,8 @@ def read_exr(path: _PathLike, param: str = "STARK_2D") -> BRDFSamples:
     try:
         import OpenEXR
     except ImportError:  # pragma: no cover - installed with the 'exr' extra
-        raise InputError("reading EXR needs the OpenEXR package: pip install 'ratfit[exr]'") \
+        raise InputError('reading EXR needs the OpenEXR package: pip install ".[exr]" '
+                         "(from the ratfit checkout)") \
             from None
     if not Path(path).is_file():
         raise FileFormatError(f"{src}: no such file")
@@ -411,11 +412,17 @@ def read_exr(path: _PathLike, param: str = "STARK_2D") -> BRDFSamples:
         magic = fh.read(4)
     if magic != b"\x76\x2f\x31\x01":
         raise FileFormatError(f"{src}: not an OpenEXR file (bad magic number)")
+    from ratfit._quiet import quiet_output
+
+    said = ""
     try:
-        with OpenEXR.File(str(path)) as f:
+        with quiet_output() as cap, OpenEXR.File(str(path)) as f:
             chans = {k: np.asarray(v.pixels, dtype=np.float64) for k, v in f.channels().items()}
+        said = cap.first_line
     except Exception as exc:  # OpenEXR raises plain RuntimeError/ValueError on bad files
         raise FileFormatError(f"{src}: unreadable EXR: {exc}") from None
+    if said:  # OpenEXR warns (and returns partial pixels) on a damaged file
+        raise FileFormatError(f"{src}: damaged EXR (OpenEXR: {said})")
     planes: dict[str, Array] = {}
     for k, v in chans.items():
         if v.ndim == 3:

@@ -9,7 +9,15 @@ from typing import Any
 import click
 import numpy as np
 
-from ratfit.cli.main import EXIT_NO_FIT, _fit_json, _print_report, _progress, _write_json, main
+from ratfit.cli.main import (
+    EXIT_NO_FIT,
+    _fit_json,
+    _print_report,
+    _progress,
+    _write_json,
+    main,
+    trust_edited_option,
+)
 from ratfit.cli.options import aliased_option, fit_options, pop_fit_params
 
 
@@ -136,6 +144,7 @@ def brdf_fit(input_path: Path, output: Path | None, fmt: str | None, param: str 
 
 
 @brdf_group.command("eval")
+@trust_edited_option
 @click.argument("fit_path", metavar="FIT.json", type=click.Path(dir_okay=False, path_type=Path))
 @click.option("--dirs", "dirs", type=click.Path(dir_okay=False, path_type=Path),
               help="Directions: CSV/text rows 'lx ly lz vx vy vz' (a header line is allowed).")

@@ -20,7 +20,15 @@ from typing import Any
 import click
 import numpy as np
 
-from ratfit.cli.main import EXIT_NO_FIT, _fit_json, _progress, _write_json, demo_group, main
+from ratfit.cli.main import (
+    EXIT_NO_FIT,
+    _fit_json,
+    _progress,
+    _write_json,
+    demo_group,
+    main,
+    trust_edited_option,
+)
 from ratfit.cli.options import aliased_option, fit_options, pop_fit_params
 from ratfit.errors import FileFormatError, InputError, RatfitError
 
@@ -195,6 +203,7 @@ def cdf_cmd(input_path: Path, output: Path | None, source: str | None, fmt: str 
 
 # ---------------------------------------------------------------------------- sample
 @main.command("sample")
+@trust_edited_option
 @click.argument("fit_path", metavar="CDF.json", type=click.Path(dir_okay=False, path_type=Path))
 @click.option("-n", "count", type=click.IntRange(min=1), required=True, help="Number of draws.")
 @click.option("--seed", type=click.IntRange(min=0), default=None,

@@ -7,7 +7,7 @@ from pathlib import Path
 
 import click
 
-from ratfit.cli.main import _write_json, main
+from ratfit.cli.main import _write_json, main, trust_edited_option
 from ratfit.cli.options import aliased_option
 from ratfit.errors import InputError
 
@@ -15,6 +15,7 @@ _FILE = click.Path(dir_okay=False, path_type=Path)
 
 
 @main.command("export")
+@trust_edited_option
 @click.argument("fit_path", metavar="FIT.json", type=_FILE)
 @click.option("--lang", type=click.Choice(["c", "glsl", "python"]), required=True)
 @click.option("-o", "--output", type=_FILE, required=True, help="Source file to write.")
@@ -37,6 +38,7 @@ def export_cmd(fit_path: Path, lang: str, output: Path, form: str, prefix: str) 
 
 
 @main.command("plot")
+@trust_edited_option
 @click.argument("fit_path", metavar="FIT.json", type=_FILE)
 @click.option("--data", "data_path", type=_FILE, help="Data file to show with the fit.")
 @click.option("--kind", type=click.Choice(["slice", "polar", "sphere", "error"]),
@@ -47,7 +49,8 @@ def export_cmd(fit_path: Path, lang: str, output: Path, form: str, prefix: str) 
 @click.option("--model", "models", multiple=True,
               help="Analytic model(s) fitted to the data and drawn beside (BRDF fits), "
                    "e.g. lambert+ggx. Default for sphere: lambert+ggx.")
-@click.option("--size", type=int, default=128, show_default=True, help="Sphere image size.")
+@click.option("--size", type=click.IntRange(16, 4096), default=128, show_default=True,
+              help="Sphere image size.")
 def plot_cmd(fit_path: Path, data_path: Path | None, kind: str, output: Path, channel: int,
              dim: int, models: tuple[str, ...], size: int) -> None:
     """Pictures of a fit: slice (fit, data, signed error), error, polar or sphere."""
@@ -109,6 +112,7 @@ def plot_cmd(fit_path: Path, data_path: Path | None, kind: str, output: Path, ch
 
 
 @main.command("report")
+@trust_edited_option
 @click.argument("fit_path", metavar="FIT.json", type=_FILE)
 @click.option("--data", "data_path", type=_FILE, help="Data file the fit is compared with.")
 @aliased_option("-o", "--output", "outdir", hidden=["--outdir"], required=True,
@@ -215,6 +219,7 @@ def _register_compare(group: click.Group) -> None:
     @click.option("--starts", type=int, default=8, show_default=True,
                   help="Random starts per analytic fit.")
     @click.option("--json", "as_json", is_flag=True, help="Print one JSON object on stdout.")
+    @trust_edited_option
     def compare_cmd(data_path: Path, fits: tuple[str, ...], models: tuple[str, ...],
                     param: str | None, starts: int, as_json: bool) -> None:
         """Metrics of rational fits (FIT files) and analytic models side by side on DATA."""

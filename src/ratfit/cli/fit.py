@@ -17,6 +17,7 @@ from ratfit.cli.main import (
     _progress,
     _write_json,
     main,
+    trust_edited_option,
 )
 from ratfit.cli.options import fit_options, pop_fit_params, segment_options
 from ratfit.errors import RatfitError
@@ -129,6 +130,7 @@ def fit_cmd(input_path: Path, output: Path | None, fmt: str | None, dt: float | 
 
 
 @main.command("eval")
+@trust_edited_option
 @click.argument("fit_path", metavar="FIT.json", type=click.Path(dir_okay=False, path_type=Path))
 @click.argument("input_path", metavar="INPUT", type=click.Path(dir_okay=False, path_type=Path))
 @click.option("-o", "--output", type=click.Path(dir_okay=False, path_type=Path),

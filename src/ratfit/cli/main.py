@@ -26,10 +26,66 @@ EXIT_INTERRUPTED = 130
 PROGRESS_EVERY = 5.0
 
 
+def one_line(text: str) -> str:
+    """Collapse a message to one line: bad input gets exactly one ``error:`` line."""
+    return " ".join(str(text).split())
+
+
+def _usage_message(exc: click.UsageError) -> str:
+    """click's Usage/Try/Error block folded into one ``error:`` line."""
+    msg = one_line(exc.format_message())
+    ctx = exc.ctx
+    if ctx is None:
+        return f"error: {msg}"
+    usage = one_line(ctx.get_usage()).removeprefix("Usage: ")
+    return f"error: {msg} (usage: {usage}; see '{ctx.command_path} --help')"
+
+
 class _Main(click.Group):
-    """Maps library errors to one-line messages and exit codes, without tracebacks."""
+    """Maps library errors to one-line messages and exit codes, without tracebacks.
+
+    Warnings raised while a command runs are held back: when the input turns out
+    bad, the one ``error:`` line is all the user sees; otherwise they follow the
+    output as ``warning:`` lines.
+    """
+
+    def main(self, args: Any = None, prog_name: str | None = None,
+             complete_var: str | None = None, standalone_mode: bool = True,
+             **extra: Any) -> Any:
+        if not standalone_mode:
+            return super().main(args, prog_name, complete_var, standalone_mode, **extra)
+        try:
+            rv = super().main(args, prog_name, complete_var, False, **extra)
+        except click.UsageError as exc:
+            click.echo(_usage_message(exc), err=True)
+            sys.exit(EXIT_BAD_INPUT)
+        except click.ClickException as exc:
+            click.echo(f"error: {one_line(exc.format_message())}", err=True)
+            sys.exit(exc.exit_code)
+        except click.Abort:
+            click.echo("interrupted", err=True)
+            sys.exit(EXIT_INTERRUPTED)
+        sys.exit(rv if isinstance(rv, int) else 0)
 
     def invoke(self, ctx: click.Context) -> Any:
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("default")
+            try:
+                rv = self._invoke(ctx)
+            except click.exceptions.Exit as exc:
+                if exc.exit_code not in (0, EXIT_NO_FIT):
+                    raise
+                _replay(caught)
+                raise
+            except SystemExit as exc:
+                if exc.code not in (0, None, EXIT_NO_FIT):
+                    raise
+                _replay(caught)
+                raise
+        _replay(caught)
+        return rv
+
+    def _invoke(self, ctx: click.Context) -> Any:
         try:
             return super().invoke(ctx)
         except (click.exceptions.Exit, click.ClickException, click.Abort):
@@ -50,33 +106,66 @@ class _Main(click.Group):
             os.dup2(devnull, sys.stdout.fileno())
             ctx.exit(141)
         except RatfitError as exc:
-            click.echo(f"error: {exc}", err=True)
+            click.echo(f"error: {one_line(str(exc))}", err=True)
             ctx.exit(EXIT_BAD_INPUT)
         except OSError as exc:
-            name = exc.filename if exc.filename else ""
-            click.echo(f"error: {name}: {exc.strerror or exc}", err=True)
+            name = f"{exc.filename}: " if exc.filename else ""
+            click.echo(f"error: {one_line(name + str(exc.strerror or exc))}", err=True)
             ctx.exit(EXIT_BAD_INPUT)
         except MemoryError:
             click.echo("error: out of memory (try fewer points or a smaller max total)", err=True)
+            ctx.exit(EXIT_BAD_INPUT)
+        except RecursionError:
+            click.echo("error: input nested too deeply to read", err=True)
             ctx.exit(EXIT_BAD_INPUT)
         except Exception as exc:  # an internal bug: say so, keep the trace behind a variable
             if os.environ.get("RATFIT_DEBUG"):
                 raise
             click.echo(
-                f"internal error: {type(exc).__name__}: {exc} (set RATFIT_DEBUG=1 for a trace)",
+                f"internal error: {type(exc).__name__}: {one_line(str(exc))} "
+                "(set RATFIT_DEBUG=1 for a trace)",
                 err=True,
             )
             ctx.exit(3)
 
 
+def _replay(caught: list[warnings.WarningMessage]) -> None:
+    """Warnings held back during a successful command, one line each, without repeats."""
+    seen: set[str] = set()
+    for w in caught:
+        text = one_line(str(w.message))
+        if text in seen:
+            continue
+        seen.add(text)
+        click.echo(f"warning: {text}", err=True)
+
+
 @click.group(cls=_Main, context_settings={"help_option_names": ["-h", "--help"]})
 @click.version_option(package_name="ratfit")
 def main() -> None:
-    """Verified rational fits of vertical segments (interval data)."""
-    warnings.simplefilter("default")
+    """Verified rational fits of vertical segments (interval data).
+
+    Exit codes: 0 success, 1 no verified fit found, 2 bad input or usage, 130 on Ctrl-C.
+    """
 
 
 # ---------------------------------------------------------------------------- helpers
+def trust_edited_option(f: Callable) -> Callable:
+    """``--trust-edited``: load fit files whose content no longer matches their digest."""
+
+    def cb(ctx: click.Context, param: click.Parameter, value: bool) -> None:
+        if value:
+            from ratfit.io.fitfile import _TRUST_EDITED
+
+            token = _TRUST_EDITED.set(True)
+            ctx.call_on_close(lambda: _TRUST_EDITED.reset(token))
+
+    return click.option(
+        "--trust-edited", is_flag=True, expose_value=False, callback=cb,
+        help="Use a fit file edited after ratfit wrote it (its digest no longer matches) "
+             "as an UNVERIFIED function instead of refusing it.")(f)
+
+
 def _progress(enabled: bool) -> tuple[Callable | None, Callable[[], None]]:
     """A rich status line on stderr while a search runs; without a terminal, a
     plain line every PROGRESS_EVERY seconds (logs of long runs show they move)."""

@@ -57,6 +57,10 @@ def tolerance_cmd(input_path: Path, width_kind: str, absolute_flag: bool, rtol: 
     for c in pick:
         if not 0 <= c < k:
             raise InputError(f"channel {c} out of range: {input_path} has {k} channel(s)")
+    for label, v in (("--n", n), ("--m", m)):
+        if v > data.n_points:
+            raise InputError(f"{label} {v} is more coefficients than the {data.n_points} data "
+                             f"point(s) of {input_path} can determine")
     names = data.output_names or tuple(f"y{j}" for j in range(k))
     outs = []
     for c in pick:

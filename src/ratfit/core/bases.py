@@ -12,10 +12,9 @@ multi-indices of the graded order (degree ``n - 1`` in 1-D).
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from functools import cached_property
-from itertools import product
 
 import numpy as np
 from numpy.polynomial import chebyshev as _cheb
@@ -117,10 +116,14 @@ def multi_indices(dim: int, count: int, index_set: str = "total",
     out: list[tuple[int, ...]] = []
     shell = 0
     while len(out) < count:
-        sh = _shell(dim, shell, index_set)
-        if caps is not None:
-            sh = [a for a in sh if all(v <= c for v, c in zip(a, caps, strict=True))]
-        out.extend(sh)
+        # Shells are generated lazily: a full shell has (s+1)^dim candidates, so
+        # enumerating it whole is exponential in the dimension.
+        for a in _shell(dim, shell, index_set):
+            if caps is not None and not all(v <= c for v, c in zip(a, caps, strict=True)):
+                continue
+            out.append(a)
+            if len(out) == count:
+                break
         shell += 1
     return np.array(out[:count], dtype=np.int64).reshape(count, dim)
 
@@ -130,15 +133,29 @@ def _capped_size(caps: tuple[int, ...], index_set: str) -> int:
     return int(np.prod([c + 1 for c in caps], dtype=float)) if caps else 0
 
 
-def _shell(dim: int, s: int, index_set: str) -> list[tuple[int, ...]]:
+def _shell(dim: int, s: int, index_set: str) -> Iterator[tuple[int, ...]]:
+    """Multi-indices of shell s: lower total degree first, then x0's power descending."""
     if dim == 1:
-        return [(s,)]
+        yield (s,)
+        return
     if index_set == "total":
-        cand = [a for a in product(range(s + 1), repeat=dim) if sum(a) == s]
-    else:
-        cand = [a for a in product(range(s + 1), repeat=dim) if max(a) == s]
-    # lower total degree first (tensor shells), then x0's power descending
-    return sorted(cand, key=lambda a: (sum(a), tuple(-v for v in a)))
+        yield from _compositions(s, dim, s)
+        return
+    for t in range(s, s * dim + 1):  # tensor: max(a) == s, by total degree t
+        for a in _compositions(t, dim, s):
+            if max(a) == s:
+                yield a
+
+
+def _compositions(total: int, parts: int, cap: int) -> Iterator[tuple[int, ...]]:
+    """Tuples of ``parts`` integers in [0, cap] summing to ``total``, first entry descending."""
+    if parts == 1:
+        if total <= cap:
+            yield (total,)
+        return
+    for a in range(min(total, cap), max(-1, total - cap * (parts - 1) - 1), -1):
+        for rest in _compositions(total - a, parts - 1, cap):
+            yield (a, *rest)
 
 
 class PolynomialSpace:
@@ -183,6 +200,8 @@ class PolynomialSpace:
         dom = np.array(domain, dtype=float).reshape(-1, 2)
         if not np.all(np.isfinite(dom)):
             raise InputError(f"domain must be finite, got {dom.tolist()}")
+        if float(np.max(np.abs(dom), initial=0.0)) > 1e150:
+            raise InputError(f"domain bounds beyond 1e150 in magnitude: {dom.tolist()}")
         if np.any(dom[:, 1] <= dom[:, 0]):
             bad = int(np.flatnonzero(dom[:, 1] <= dom[:, 0])[0])
             raise InputError(

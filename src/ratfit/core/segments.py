@@ -18,6 +18,37 @@ from ratfit.errors import InputError
 __all__ = ["Segments", "check_points", "check_values"]
 
 
+# Values beyond this overflow the squares and norms of the QP rows (lo * q(x) squared);
+# an x range narrower than SPAN_RTOL of its magnitude leaves too few digits to tell
+# the points apart once mapped to [-1, 1].
+MAX_MAGNITUDE = 1e150
+SPAN_RTOL = 1e-12
+# The n-D pole check samples at least 3^d points and a degree-s shell has O(s^d)
+# basis functions: beyond this many input dimensions fits are out of reach.
+MAX_DIM = 12
+
+
+def _check_magnitudes(x: NDArray[np.float64], lo: NDArray[np.float64],
+                      hi: NDArray[np.float64], span: NDArray[np.float64]) -> None:
+    """Refuse numbers the fitting arithmetic cannot carry (instead of failing inside it)."""
+    for name, arr in (("x", x), ("lo", lo), ("hi", hi)):
+        big = float(np.max(np.abs(arr)))
+        if big > MAX_MAGNITUDE:
+            raise InputError(
+                f"{name} holds values up to {big:.3g} in magnitude; ratfit handles magnitudes "
+                f"up to {MAX_MAGNITUDE:.0e}: rescale the data (or use a narrower width)"
+            )
+    if x.shape[0] > 1:
+        scale = np.max(np.abs(x), axis=0)
+        narrow = (span < SPAN_RTOL * scale) | (span < 1e-150)
+        if np.any(narrow):
+            dim = int(np.flatnonzero(narrow)[0])
+            raise InputError(
+                f"x spans only {float(span[dim]):.3g} in dimension {dim} (values near "
+                f"{float(scale[dim]):.3g}): too narrow to map to [-1, 1]; shift or rescale x"
+            )
+
+
 @dataclass(frozen=True)
 class Segments:
     """Points ``x`` (N, d) with bounds ``lo``, ``hi`` (N, k) for k channels.
@@ -67,6 +98,12 @@ class Segments:
         lo = check_values(self.lo, x.shape[0], "lo")
         hi = check_values(self.hi, x.shape[0], "hi")
         check_order(lo, hi)
+        if x.shape[1] > MAX_DIM:
+            raise InputError(
+                f"x has {x.shape[1]} input dimensions; ratfit fits up to {MAX_DIM} (the pole "
+                "check and the basis grow exponentially with the dimension): is the last "
+                "column really the only output?"
+            )
         y = None if self.y is None else check_values(self.y, x.shape[0], "y")
         if y is not None and y.shape != lo.shape:
             raise InputError(f"y has shape {y.shape} but the bounds have shape {lo.shape}")
@@ -77,6 +114,7 @@ class Segments:
                 f"x is constant in dimension {dim} (value {float(x[0, dim])!r}); "
                 "a polynomial basis in that variable is degenerate: drop that column"
             )
+        _check_magnitudes(x, lo, hi, span)
         names = tuple(self.names) or tuple(f"y{j}" for j in range(lo.shape[1]))
         if len(names) != lo.shape[1]:
             raise InputError(f"{len(names)} channel names given for {lo.shape[1]} channels")

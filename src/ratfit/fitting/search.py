@@ -214,6 +214,28 @@ class RationalFitter(Estimator):
         p = check_fit_params({k: getattr(self, k) for k in FIT_OPTIONS})
         if p["formulation"] == "arnoldi" and seg.dim > 1 and p["index_set"] != "total":
             raise InputError("formulation 'arnoldi' needs index_set='total' in n-D")
+        if p["max_total"] is None and p["min_total"] > DEFAULT_MAX_TOTAL:
+            raise InputError(
+                f"min_total={p['min_total']} exceeds the default max_total "
+                f"{DEFAULT_MAX_TOTAL}: give max_total too"
+            )
+        for name in ("n", "m"):
+            v = p[name]
+            if v is not None and v > seg.n_points:
+                raise InputError(
+                    f"{name}={v} is more coefficients than the {seg.n_points} data point(s) "
+                    "can determine"
+                )
+        if p["jobs"] is not None and p["jobs"] > MAX_JOBS:
+            raise InputError(f"jobs={p['jobs']} threads is beyond reason (at most {MAX_JOBS})")
+        most = 2 * seg.n_points  # n and m are capped at the number of distinct points
+        for name in ("total", "min_total"):
+            v = p[name]
+            if v is not None and v > max(most, 2):
+                raise InputError(
+                    f"{name}={v} is more coefficients than {seg.n_points} point(s) can "
+                    f"determine (n and m are each at most the number of points)"
+                )
         zero = seg.hi == seg.lo
         if zero.any():
             i, j = (int(v) for v in np.argwhere(zero)[0])
@@ -455,6 +477,9 @@ def fit(segments: Segments, **params) -> FitResult:
     (True, 1, 2)
     """
     return RationalFitter(**params).fit(segments).result_
+
+
+MAX_JOBS = 1024
 
 
 def _is_int(v: object) -> bool:

@@ -23,7 +23,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from ratfit._atomic import atomic_open
-from ratfit.core.segments import Segments, check_points, check_values
+from ratfit.core.segments import MAX_MAGNITUDE, Segments, check_points, check_values
 from ratfit.errors import FileFormatError, InputError
 
 __all__ = ["FORMATS", "Dataset", "read_data", "write_alta", "write_csv"]
@@ -83,6 +83,17 @@ class Dataset:
             raise InputError(f"{src}: {len(onames)} output names for {k} output channels")
         if lo is not None and hi is not None:
             _check_order(src, lo, hi, onames)
+        for name, arr in (("x", x), ("y", y), ("lo", lo), ("hi", hi)):
+            if arr is None or not arr.size:
+                continue
+            big = float(np.max(np.abs(arr)))
+            if big > MAX_MAGNITUDE:
+                row = int(np.argwhere(np.abs(arr) > MAX_MAGNITUDE)[0][0])
+                raise InputError(
+                    f"{src}: {name} holds a value of magnitude {big:.3g} (first at data row "
+                    f"{row + 1}); ratfit handles magnitudes up to {MAX_MAGNITUDE:.0e}: "
+                    "rescale the data"
+                )
         for attr, val in (
             ("x", x),
             ("y", y),
@@ -596,6 +607,8 @@ def _read_csv(src: str, data: bytes, dim: int | None) -> Dataset:
         raise FileFormatError(f"{src}: no data (only comments or blank lines)")
     if not rows:
         raise FileFormatError(f"{src}: no data rows after the header")
+    if header is None and sep == "," and ncols == 2:
+        _check_decimal_commas(src, rows, lines)
     arr = _to_array(src, rows, lines, ncols)
     meta: dict[str, Any] = {"format": "csv", "source": src}
     roles = [_classify(h) for h in header] if header is not None else []
@@ -648,6 +661,30 @@ def _read_csv(src: str, data: bytes, dim: int | None) -> Dataset:
             f"{src}: the header names {len(xcols)} input column(s) but dim={dim} given"
         )
     return Dataset(x, y, lo, hi, tuple(header[j] for j in xcols), tuple(order), meta)
+
+
+_INT = re.compile(r"[+-]?[0-9]+")
+
+
+def _check_decimal_commas(src: str, rows: list[list[str]], lines: list[int]) -> None:
+    """Refuse one column of decimal-comma numbers ("0,0082") posing as x,y integer pairs.
+
+    Read as CSV, "0,0082" is x = 0, y = 82: a silent misparse. The signs: every value
+    an integer, and a second column with leading zeros or a first column that repeats.
+    A header line (``x,y``) states that the file really holds integer pairs.
+    """
+    if not all(_INT.fullmatch(a) and _INT.fullmatch(b) for a, b in rows):
+        return
+    lead = [i for i, (_, b) in enumerate(rows) if len(b.lstrip("+-")) > 1 and
+            b.lstrip("+-").startswith("0")]
+    firsts = [a for a, _ in rows]
+    if lead or len(set(firsts)) < len(firsts):
+        i = lead[0] if lead else 0
+        raise FileFormatError(
+            f"{src} line {lines[i]}: {','.join(rows[i])!r} looks like a number with a decimal "
+            "comma, not two columns: ratfit reads '.' as the decimal point (convert the file); "
+            "if these really are integer x,y pairs, add a header line 'x,y'"
+        )
 
 
 _BAD_NAME = re.compile(r"[\s,#\"']")

@@ -8,12 +8,16 @@ misses its segments.
 
 from __future__ import annotations
 
+import contextlib
+import contextvars
 import datetime as _dt
 import hashlib
 import json
 import os
 import platform
 import sys
+import warnings
+from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -25,12 +29,17 @@ from ratfit._atomic import atomic_open
 from ratfit.core.bases import PolynomialSpace
 from ratfit.core.rational import RationalFunction
 from ratfit.core.results import FitResult
+from ratfit.core.segments import MAX_DIM, MAX_MAGNITUDE, SPAN_RTOL
 from ratfit.errors import FileFormatError, InputError
 
-__all__ = ["FORMAT", "VERSION", "SavedFit", "SavedChannel", "fit_document", "load_fit", "save_fit"]
+__all__ = [
+    "FORMAT", "VERSION", "FitFileWarning", "SavedChannel", "SavedFit", "content_digest",
+    "fit_document", "load_fit", "save_fit", "trusting_edited",
+]
 
 FORMAT = "ratfit.fit"
-VERSION = 2  # 2: optional p_basis / q_basis (Arnoldi recurrences) per channel
+VERSION = 3  # 2: optional p_basis / q_basis (Arnoldi recurrences); 3: content digest
+DIGEST_SINCE = 3
 
 
 @dataclass(frozen=True)
@@ -49,6 +58,15 @@ class SavedFit:
     version: int
     # Top-level keys an application added with fit_document(extra=...) (e.g. "brdf").
     extra: dict[str, Any] = field(default_factory=dict)
+    # "sealed": the content matches the digest ratfit wrote; "legacy": a file from
+    # before digests; "edited": a mismatch accepted with --trust-edited.
+    integrity: str = "sealed"
+
+    @property
+    def verified(self) -> bool:
+        """Every channel recorded as verified, in a file known to be unedited."""
+        return self.integrity == "sealed" and all(
+            c.summary.get("verified") is True for c in self.channels)
 
     def __call__(self, x: ArrayLike) -> NDArray[np.float64]:
         """Values (N, k) of every channel at points x."""
@@ -122,6 +140,7 @@ def fit_document(
         if key in doc:
             raise InputError(f"extra key {key!r} clashes with a fit file key")
         doc[key] = val
+    doc[DIGEST_KEY] = content_digest(doc)
     return doc
 
 
@@ -167,7 +186,10 @@ def save_fit(
     else:
         document = fit_document(_as_results(fit), monomial=monomial, provenance=provenance,
                                 extra=extra)
-    text = json.dumps(document, indent=1, allow_nan=False)
+    doc = {k: v for k, v in document.items() if k != DIGEST_KEY}
+    doc["version"] = VERSION
+    doc[DIGEST_KEY] = content_digest(doc)  # sealed: load_fit refuses an edited file
+    text = json.dumps(doc, indent=1, allow_nan=False)
     with atomic_open(path, "w") as fh:
         fh.write(text)
         fh.write("\n")
@@ -191,12 +213,55 @@ def _as_results(fit: Any) -> list[FitResult]:
     )
 
 
-def load_fit(path: str | os.PathLike[str]) -> SavedFit:
-    """Read a fit file, checking its format, version and internal consistency.
+# ---------------------------------------------------------------------------- digest
+DIGEST_KEY = "digest"
+
+
+def content_digest(document: dict[str, Any]) -> str:
+    """sha256 of the canonical JSON of every key but the digest itself.
+
+    That covers everything that defines the function (coefficients, bases and
+    recurrences, index sets, domain, the BRDF parametrization) and the record of
+    its verification (diagnostics): any edit, even one that keeps the file valid
+    JSON, changes the digest. Canonical: sorted keys, no whitespace, floats in
+    Python's shortest round-trip form, so re-indenting the file keeps it intact.
+    """
+    body = {k: v for k, v in document.items() if k != DIGEST_KEY}
+    text = json.dumps(body, sort_keys=True, separators=(",", ":"), allow_nan=False,
+                      ensure_ascii=True)
+    return "sha256:" + hashlib.sha256(text.encode("ascii")).hexdigest()
+
+
+class FitFileWarning(UserWarning):
+    """A fit file loaded without proof that it is what ratfit wrote (old or trusted edit)."""
+
+
+_TRUST_EDITED: contextvars.ContextVar[bool] = contextvars.ContextVar("trust_edited",
+                                                                     default=False)
+
+
+@contextlib.contextmanager
+def trusting_edited(flag: bool = True) -> Iterator[None]:
+    """Within this block, load_fit accepts edited fit files as unverified functions."""
+    token = _TRUST_EDITED.set(flag)
+    try:
+        yield
+    finally:
+        _TRUST_EDITED.reset(token)
+
+
+# ---------------------------------------------------------------------------- load
+def load_fit(path: str | os.PathLike[str], *, trust_edited: bool | None = None) -> SavedFit:
+    """Read a fit file, checking its format, version, digest and internal consistency.
+
+    A file whose content does not match its digest was edited after ratfit wrote
+    it: refused, unless ``trust_edited`` (then loaded with ``verified`` False).
 
     Parameters
     ----------
     path : str or path-like
+    trust_edited : bool, optional
+        Accept an edited file (default: ``--trust-edited`` of the CLI, else False).
 
     Returns
     -------
@@ -226,37 +291,214 @@ def load_fit(path: str | os.PathLike[str]) -> SavedFit:
         raise FileFormatError(
             f"{p}: not valid JSON (truncated or corrupt) at line {exc.lineno}: {exc.msg}"
         ) from None
-    return parse_fit(doc, str(p))
+    except RecursionError:
+        raise FileFormatError(f"{p}: not a ratfit fit file (JSON nested too deeply)") from None
+    except ValueError as exc:  # e.g. an integer of more than 4300 digits
+        raise FileFormatError(f"{p}: not a ratfit fit file ({exc})") from None
+    trust = _TRUST_EDITED.get() if trust_edited is None else trust_edited
+    return parse_fit(doc, str(p), trust_edited=trust)
 
 
-def parse_fit(doc: Any, where: str = "fit") -> SavedFit:
+def parse_fit(doc: Any, where: str = "fit", *, trust_edited: bool = False) -> SavedFit:
+    """A :class:`SavedFit` from a decoded fit document, every field type-checked."""
     if not isinstance(doc, dict) or doc.get("format") != FORMAT:
         raise FileFormatError(f"{where}: not a ratfit fit file (missing format {FORMAT!r})")
     version = doc.get("version")
-    if not isinstance(version, int) or version > VERSION or version < 1:
+    if not _is_int(version) or version > VERSION or version < 1:
         raise FileFormatError(
-            f"{where}: unsupported fit file version {version!r} (this ratfit reads 1..{VERSION})"
+            f"{where}: unsupported fit file version {_short(version)} "
+            f"(this ratfit reads 1..{VERSION})"
         )
     try:
-        space = PolynomialSpace.from_dict(doc["space"])
-        chans = []
-        for c in doc["channels"]:
-            rf = RationalFunction.from_dict({**c, "space": None}, space)
-            for key, count in (("p_indices", rf.n), ("q_indices", rf.m)):
-                if key in c and c[key] != space.indices(count).tolist():
-                    raise FileFormatError(f"{where}: {key} of channel {c['name']!r} do not match")
-            if not (np.all(np.isfinite(rf.p)) and np.all(np.isfinite(rf.q))):
-                raise FileFormatError(f"{where}: non-finite coefficients in {c['name']!r}")
-            chans.append(SavedChannel(c["name"], rf, c.get("diagnostics", {}), c.get("monomial")))
-    except (KeyError, TypeError, ValueError) as exc:
-        if isinstance(exc, FileFormatError):
-            raise
+        space = _space(doc.get("space"), where)
+        is_brdf = isinstance(doc.get("brdf"), dict)
+        chans_doc = doc.get("channels")
+        if not isinstance(chans_doc, list) or not chans_doc:
+            raise FileFormatError(f"{where}: fit file has no channels (a non-empty list)")
+        chans = [_channel(c, i, space, where, pole_check=not is_brdf)
+                 for i, c in enumerate(chans_doc)]
+    except FileFormatError:
+        raise
+    except (KeyError, TypeError, ValueError, OverflowError, IndexError) as exc:
         what = f"{type(exc).__name__}: {exc}"
-        raise FileFormatError(f"{where}: malformed fit file ({what})") from None
-    if not chans:
-        raise FileFormatError(f"{where}: fit file has no channels")
+        raise FileFormatError(f"{where}: malformed fit file ({_cut(what)})") from None
+    prov = doc.get("provenance", {})
+    if not isinstance(prov, dict):
+        raise FileFormatError(f"{where}: 'provenance' must be an object, got {_kind(prov)}")
     extra = {k: v for k, v in doc.items() if k not in _CORE_KEYS}
-    return SavedFit(space, tuple(chans), doc.get("provenance", {}), version, extra)
+    if "brdf" in extra and not isinstance(extra["brdf"], dict):
+        raise FileFormatError(f"{where}: 'brdf' must be an object, got {_kind(extra['brdf'])}")
+    # Last: a corrupt file gets the message that names its defect, an intact but
+    # edited one the digest message.
+    integrity = _integrity(doc, where, version, trust_edited)
+    return SavedFit(space, tuple(chans), prov, version, extra, integrity)
 
 
-_CORE_KEYS = frozenset({"format", "version", "space", "channels", "provenance"})
+_CORE_KEYS = frozenset({"format", "version", "space", "channels", "provenance", DIGEST_KEY})
+
+
+def _integrity(doc: dict[str, Any], where: str, version: int, trust_edited: bool) -> str:
+    stored = doc.get(DIGEST_KEY)
+    if stored is None and version < DIGEST_SINCE:
+        warnings.warn(
+            f"{where}: written by an older ratfit without a content digest: it cannot be "
+            "told from an edited file, so it is treated as unverified (refit to renew it)",
+            FitFileWarning, stacklevel=3,
+        )
+        return "legacy"
+    if isinstance(stored, str) and stored == content_digest(doc):
+        return "sealed"
+    if trust_edited:
+        warnings.warn(
+            f"{where}: edited after ratfit wrote it (content does not match its digest); "
+            "used as an UNVERIFIED function because of --trust-edited",
+            FitFileWarning, stacklevel=3,
+        )
+        return "edited"
+    what = "has no digest" if stored is None else "does not match its digest"
+    raise FileFormatError(
+        f"{where}: the fit file {what}: it was edited after ratfit wrote and verified it "
+        "(a changed coefficient, recurrence or domain is another function); refit it, "
+        "or pass --trust-edited to use it as an unverified function"
+    )
+
+
+def _space(d: Any, where: str) -> PolynomialSpace:
+    if not isinstance(d, dict):
+        raise FileFormatError(f"{where}: 'space' must be an object, got {_kind(d)}")
+    fam, iset = d.get("family"), d.get("index_set", "total")
+    if not isinstance(fam, str) or not isinstance(iset, str):
+        raise FileFormatError(f"{where}: space 'family' and 'index_set' must be strings")
+    dom = d.get("domain")
+    if not isinstance(dom, list) or not dom or not all(
+        isinstance(r, list) and len(r) == 2 and all(_is_num(v) for v in r) for r in dom
+    ):
+        raise FileFormatError(f"{where}: space 'domain' must be a list of [lo, hi] number pairs")
+    arr = np.array(dom, dtype=float)
+    if not np.all(np.isfinite(arr)) or float(np.max(np.abs(arr))) > MAX_MAGNITUDE:
+        raise FileFormatError(f"{where}: domain {_cut(str(dom))} has non-finite or huge bounds "
+                              f"(beyond {MAX_MAGNITUDE:.0e})")
+    width = arr[:, 1] - arr[:, 0]
+    scale = np.max(np.abs(arr), axis=1)
+    if np.any(width <= 0) or np.any((width < SPAN_RTOL * scale) | (width < 1e-150)):
+        raise FileFormatError(f"{where}: domain {_cut(str(dom))} is empty, reversed or too "
+                              "narrow to map to [-1, 1]")
+    if arr.shape[0] > MAX_DIM:
+        raise FileFormatError(f"{where}: {arr.shape[0]} input dimensions (at most {MAX_DIM})")
+    md = d.get("max_degree")
+    if md is not None and (not isinstance(md, list) or len(md) != arr.shape[0]
+                           or not all(_is_int(v) and 0 <= v <= 10_000 for v in md)):
+        raise FileFormatError(f"{where}: space 'max_degree' must be {arr.shape[0]} integer "
+                              "degree caps >= 0")
+    try:
+        return PolynomialSpace(fam, arr, iset, None if md is None else tuple(md))
+    except InputError as exc:
+        raise FileFormatError(f"{where}: {exc}") from None
+
+
+def _channel(c: Any, i: int, space: PolynomialSpace, where: str, *,
+             pole_check: bool) -> SavedChannel:
+    from ratfit.core.arnoldi import ArnoldiBasis
+
+    if not isinstance(c, dict):
+        raise FileFormatError(f"{where}: channel {i} must be an object, got {_kind(c)}")
+    name = c.get("name")
+    if not isinstance(name, str) or not name:
+        raise FileFormatError(f"{where}: channel {i} needs a non-empty string 'name', "
+                              f"got {_kind(name)}")
+    here = f"{where}: channel {name!r}"
+    coef = {}
+    for key in ("p", "q"):
+        v = c.get(key)
+        if not isinstance(v, list) or not v or not all(_is_num(t) for t in v):
+            raise FileFormatError(f"{here}: '{key}' must be a non-empty list of numbers")
+        arr = np.array(v, dtype=float)
+        if not np.all(np.isfinite(arr)) or float(np.max(np.abs(arr))) > MAX_MAGNITUDE:
+            raise FileFormatError(f"{here}: non-finite or huge coefficients in '{key}' "
+                                  f"(beyond {MAX_MAGNITUDE:.0e})")
+        coef[key] = arr
+    if not np.any(coef["q"]):
+        raise FileFormatError(f"{here}: the denominator is zero (every q coefficient is 0)")
+    for key in ("n", "m"):
+        if key in c and not (_is_int(c[key]) and c[key] == coef["p" if key == "n" else "q"].size):
+            raise FileFormatError(f"{here}: '{key}' does not match the number of coefficients")
+    bases = {}
+    for key in ("p_basis", "q_basis"):
+        b = c.get(key)
+        if b is None:
+            continue
+        if not isinstance(b, dict):
+            raise FileFormatError(f"{here}: '{key}' must be an object, got {_kind(b)}")
+        if not _is_int(b.get("size")) or not 1 <= b["size"] <= 100_000:
+            raise FileFormatError(f"{here}: '{key}' needs an integer 'size'")
+        for sub in ("parents", "dims"):
+            if not isinstance(b.get(sub), list) or not all(_is_int(t) for t in b[sub]):
+                raise FileFormatError(f"{here}: '{key}.{sub}' must be a list of integers")
+        h = b.get("H_upper")
+        if not isinstance(h, list) or not all(_is_num(t) for t in h) or (
+            len(h) != b["size"] * (b["size"] + 1) // 2
+        ):
+            raise FileFormatError(f"{here}: '{key}.H_upper' must be the "
+                                  f"{b['size'] * (b['size'] + 1) // 2} numbers of the "
+                                  "recurrence's upper triangle")
+        if not all(abs(float(t)) <= MAX_MAGNITUDE for t in h):
+            raise FileFormatError(f"{here}: huge entries in '{key}.H_upper'")
+        try:
+            bases[key] = ArnoldiBasis.from_dict(b, space)
+        except (ValueError, InputError) as exc:
+            raise FileFormatError(f"{here}: {key}: {exc}") from None
+    try:
+        rf = RationalFunction(space, coef["p"], coef["q"], **bases)
+    except ValueError as exc:
+        raise FileFormatError(f"{here}: {exc}") from None
+    for key, count in (("p_indices", rf.n), ("q_indices", rf.m)):
+        if key in c and c[key] != space.indices(count).tolist():
+            raise FileFormatError(f"{here}: {key} do not match")
+    for key in ("diagnostics", "monomial"):
+        if c.get(key) is not None and not isinstance(c[key], dict):
+            raise FileFormatError(f"{here}: '{key}' must be an object, got {_kind(c[key])}")
+    _check_function(rf, here, pole_check)
+    return SavedChannel(name, rf, dict(c.get("diagnostics") or {}), c.get("monomial"))
+
+
+def _check_function(rf: RationalFunction, here: str, pole_check: bool) -> None:
+    """The stored function is finite on its domain, has a denominator, and (unless it is
+    a BRDF, whose box domain holds directions below the horizon) no sign change of q."""
+    d = rf.space.dim
+    per = 1001 if d == 1 else max(3, int(20_000 ** (1.0 / d)))
+    axes = [np.linspace(-1.0, 1.0, per)] * d
+    grid = np.stack([g.ravel() for g in np.meshgrid(*axes, indexing="ij")], axis=1)
+    with np.errstate(all="ignore"):
+        q = rf.denominator(grid, window=True)
+        p = rf.numerator(grid, window=True)
+    if not (np.all(np.isfinite(q)) and np.all(np.isfinite(p))):
+        raise FileFormatError(f"{here}: the function overflows on its domain (corrupt "
+                              "coefficients or recurrence)")
+    if not np.any(q):
+        raise FileFormatError(f"{here}: the denominator is zero on the whole domain")
+    if pole_check and np.any(q > 0) and np.any(q < 0):
+        raise FileFormatError(f"{here}: the denominator changes sign on the domain: the "
+                              "function has a pole there")
+
+
+def _is_int(v: Any) -> bool:
+    return isinstance(v, int) and not isinstance(v, bool)
+
+
+def _is_num(v: Any) -> bool:
+    return isinstance(v, (int, float)) and not isinstance(v, bool) and (
+        not isinstance(v, int) or abs(v) < 1 << 1000
+    )
+
+
+def _kind(v: Any) -> str:
+    return {dict: "an object", list: "a list", str: "a string", bool: "a boolean",
+            type(None): "null", int: "a number", float: "a number"}.get(type(v), "?")
+
+
+def _short(v: Any) -> str:
+    return _cut(repr(v))
+
+
+def _cut(text: str, n: int = 80) -> str:
+    return text if len(text) <= n else text[: n - 3] + "..."
