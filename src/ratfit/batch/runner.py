@@ -252,12 +252,28 @@ def load_manifest(
         entry_combos = _combos(own, f"{where}: settings") if own is not None else combos
         merged = []
         for j, combo in enumerate(entry_combos):
-            s = {**DEFAULTS, **defaults, **combo, **table}
+            s = _layered(DEFAULTS, defaults, combo, table)
             _check_combined(s, where if len(entry_combos) == 1 else f"{where}, settings[{j}]")
             merged.append(s)
         paths, labels = _expand(pattern, base, where)
         entries.append(_Entry(i, pattern, where, paths, labels, channels, tuple(merged)))
     return entries, base, name
+
+
+_WIDTH_KEYS = ("dt", "abs_width")
+
+
+def _layered(*layers: Mapping[str, Any]) -> dict[str, Any]:
+    """Settings by precedence (later wins). dt and abs_width together are ONE width
+    setting: a layer that gives either replaces the pair, so an entry's ``abs_width``
+    overrides the defaults' ``dt`` instead of combining with it."""
+    out: dict[str, Any] = {}
+    for layer in layers:
+        if any(k in layer for k in _WIDTH_KEYS):
+            for k in _WIDTH_KEYS:
+                out[k] = None
+        out.update(layer)
+    return out
 
 
 def _read_manifest(path: Path) -> Any:
@@ -305,16 +321,20 @@ def _expand(pattern: str, base: Path, where: str) -> tuple[tuple[Path, ...], tup
     while fixed < len(parts) - 1 and not _MAGIC.search(parts[fixed]):
         fixed += 1
     root = Path(*parts[:fixed])
+    # abspath, not resolve(): a symlinked input keeps its own name, not its target's
     found = sorted(
-        {Path(p).resolve() for p in glob.glob(str(full), recursive=True) if Path(p).is_file()}
+        {Path(os.path.abspath(p)) for p in glob.glob(str(full), recursive=True)
+         if Path(p).is_file()}
     )
     if not found:
         raise InputError(f"{where}: matched no file (looked for {full})")
     labels = []
     for p in found:
         try:
-            rel = Path(os.path.relpath(p, root.resolve()))
+            rel = Path(os.path.relpath(p, os.path.abspath(root)))
         except ValueError:  # pragma: no cover (another drive on Windows)
+            rel = Path(p.name)
+        if ".." in rel.parts:
             rel = Path(p.name)
         labels.append(rel.with_suffix("").as_posix())
     return tuple(found), tuple(labels)
@@ -653,6 +673,30 @@ def _require() -> None:
         )
 
 
+MAIN_GUARD_HINT = (
+    "the local Dask cluster starts worker processes that import your script again: put the "
+    "call under `if __name__ == \"__main__\":` (or pass scheduler= / client=)"
+)
+
+
+def _check_main_guard() -> None:
+    """A script calling run() at top level, without a ``__main__`` guard, makes every
+    spawned worker run it again (Dask dies in its bootstrapping). Say so before starting."""
+    main_mod = sys.modules.get("__main__")
+    if getattr(main_mod, "__name__", "") == "__mp_main__":
+        raise InputError(f"ratfit.batch.run() called while a worker imports the script: "
+                         f"{MAIN_GUARD_HINT}")
+    path = getattr(main_mod, "__file__", None)
+    if not path or getattr(main_mod, "__spec__", None) is not None:
+        return  # interactive, -c, or python -m (a module's own guard applies)
+    try:
+        text = Path(path).read_text(errors="replace")
+    except OSError:
+        return
+    if "__main__" not in text:
+        raise InputError(f"{path}: {MAIN_GUARD_HINT}")
+
+
 @contextlib.contextmanager
 def _cluster(client: Any, scheduler: str | None, workers: int | None, allowed_failures: int):
     """The client to use; a LocalCluster or a connection we open is closed on exit."""
@@ -675,6 +719,7 @@ def _cluster(client: Any, scheduler: str | None, workers: int | None, allowed_fa
         finally:
             own.close()
         return
+    _check_main_guard()
     n = workers or os.cpu_count() or 1
     with dask.config.set({"distributed.scheduler.allowed-failures": allowed_failures}):
         cluster = LocalCluster(n_workers=n, processes=True, threads_per_worker=1,

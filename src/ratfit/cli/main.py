@@ -203,31 +203,65 @@ def _write_json(obj: Any) -> None:
     click.echo(json.dumps(obj, indent=1, allow_nan=False))
 
 
-def _print_report(results, out: Path | None) -> None:
+def console(pipe_width: int = 120) -> Any:
+    """A rich console: the terminal's width, or $COLUMNS (else ``pipe_width``) in a pipe."""
     from rich.console import Console
+
+    if sys.stdout.isatty():
+        return Console()
+    cols = os.environ.get("COLUMNS", "")
+    return Console(width=int(cols) if cols.isdigit() and int(cols) > 20 else pipe_width)
+
+
+def fit_table(con: Any, title: str, columns: list[str], rows: list[list[str]],
+              optional: tuple[str, ...] = (), left: tuple[str, ...] = ()) -> tuple[Any, list[str]]:
+    """A table that fits the console: ``optional`` columns are dropped (in that order)
+    while it is too wide, and what remains wraps instead of ending in "...": a number
+    is never shown cut short. Returns the table and the names of dropped columns."""
+    from rich import box
     from rich.table import Table
 
-    table = Table(title="ratfit fit")
-    for col in ("channel", "n", "m", "total", "verified", "max viol.", "Linf", "RMSE",
-                "max rel.", "delta", "QPs", "s"):
-        table.add_column(col, justify="right")
+    dropped: list[str] = []
+    while True:
+        keep = [j for j, c in enumerate(columns) if c not in dropped]
+        table = Table(title=title, box=box.SIMPLE_HEAD, collapse_padding=True, pad_edge=False)
+        for j in keep:
+            table.add_column(columns[j], justify="left" if columns[j] in left else "right",
+                             overflow="fold")
+        for r in rows:
+            table.add_row(*[r[j] for j in keep])
+        rest = [c for c in optional if c not in dropped]
+        natural = con.measure(table, options=con.options.update_width(100_000)).maximum
+        if natural <= con.width or not rest:
+            return table, dropped
+        dropped.append(rest[0])
+
+
+def _print_report(results, out: Path | None) -> None:
+    con = console()
+    cols = ["channel", "n", "m", "total", "verified", "max viol.", "Linf", "RMSE", "max rel.",
+            "delta", "QPs", "s"]
+    rows = []
     for r in results:
         s = r.summary()
-        table.add_row(
+        rows.append([
             s["channel"], str(s["n"]), str(s["m"]), str(s["total"]),
             "yes" if s["verified"] else "NO", _fmt(s["max_violation"]), _fmt(s["linf"]),
             _fmt(s["l2"]), _fmt(s["max_rel_error"]), _fmt(s["delta"]), str(s["qp_solves"]),
             f"{s['seconds']:.3f}",
-        )
-    con = Console(width=None if sys.stdout.isatty() else 120)
+        ])
+    table, dropped = fit_table(con, "ratfit fit", cols, rows,
+                               optional=("QPs", "delta", "s", "max viol."), left=("channel",))
     con.print(table)
+    if dropped:
+        con.print(f"(narrow terminal: {', '.join(dropped)} in --json)", highlight=False)
     for r in results:
         if not r.success:
             con.print(f"[bold red]{r.channel}[/]: {r.message}")
         for d in r.disagreements:
             con.print(f"[yellow]{r.channel} solver disagreement[/] {d}")
     if out is not None:
-        con.print(f"wrote {out}")
+        con.print(f"wrote {out}", highlight=False)
 
 
 def _fmt(v: float | None) -> str:
