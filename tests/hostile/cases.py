@@ -198,9 +198,9 @@ def _scale(key: str, factor: float) -> Callable[[dict], dict]:
 
 
 def _pole_in(doc: dict) -> dict:
-    # q -> q - (max q): the denominator now changes sign (or vanishes) inside the domain
+    # q -> the second basis function, which changes sign inside the domain: a pole
     ch = doc["channels"][0]
-    ch["q"][0] = ch["q"][0] - 2.0 * sum(abs(v) for v in ch["q"])
+    ch["q"] = [0.0, 1.0] + [0.0] * max(0, len(ch["q"]) - 2)
     return doc
 
 

@@ -81,7 +81,7 @@ def test_brdf_pictures(dense, tmp_path):
     p = pic.plot_brdf_slices(funcs, tmp_path / "s.png")
     _check_png(p, (640, 1200))
     p = pic.plot_polar(funcs, tmp_path / "p.png")
-    _check_png(p, (400, 1260))
+    _check_png(p, (320, 1260))
     imgs = {"data": pic.render_sphere(pic.DataBRDF(x, y, PARAM), size=48)}
     imgs.update({k: pic.render_sphere(f, size=48) for k, f in funcs.items()})
     p = pic.plot_spheres(imgs, tmp_path / "sph.png")

@@ -7,7 +7,7 @@ from pathlib import Path
 
 import click
 
-from ratfit.cli.main import EXIT_NO_FIT, _write_json, main
+from ratfit.cli.main import EXIT_NO_FIT, _write_json, console, fit_table, main
 from ratfit.cli.options import aliased_option
 
 EXIT_INTERRUPTED = 130
@@ -70,17 +70,14 @@ def batch_cmd(manifest: Path, outdir: Path, scheduler: str | None, workers: int 
 
 
 def _print_batch(summary) -> None:
-    from rich.console import Console
     from rich.markup import escape
-    from rich.table import Table
 
-    con = Console(width=None if sys.stdout.isatty() else 120)
+    con = console()
     counts = summary.counts
-    table = Table(title=f"ratfit batch: {len(summary.rows)} task(s)")
-    for col in ("ok", "no fit", "failed", "run now", "resumed"):
-        table.add_column(col, justify="right")
-    table.add_row(str(counts["ok"]), str(counts["no-fit"]), str(counts["failed"]),
-                  str(summary.fitted), str(summary.skipped))
+    table, _ = fit_table(con, f"ratfit batch: {len(summary.rows)} task(s)",
+                         ["ok", "no fit", "failed", "run now", "resumed"],
+                         [[str(counts["ok"]), str(counts["no-fit"]), str(counts["failed"]),
+                           str(summary.fitted), str(summary.skipped)]])
     con.print(table)
     for r in summary.rows:
         if r["status"] == "failed":

@@ -7,7 +7,7 @@ from pathlib import Path
 
 import click
 
-from ratfit.cli.main import EXIT_NO_FIT, _write_json, demo_group
+from ratfit.cli.main import EXIT_NO_FIT, _write_json, console, demo_group, fit_table
 from ratfit.cli.options import aliased_option, fit_options
 
 
@@ -35,21 +35,19 @@ def demo_addendum(outdir: Path, solver: str, cross_check: str, jobs: int | None,
     if as_json:
         _write_json(doc)
     else:
-        from rich.console import Console
-        from rich.table import Table
-
-        con = Console(width=None if sys.stdout.isatty() else 110)
-        table = Table(title=f"Seed section 2: n = m = 20, +-10 % segments, solver {solver}")
-        for col in ("basis", "delta (paper)", "sigma_min (paper)", "sigma_max (paper)",
-                    "verified", "poles", "decided by"):
-            table.add_column(col, justify="right")
+        con = console(110)
+        cols = ["basis", "delta (paper)", "sigma_min (paper)", "sigma_max (paper)", "verified",
+                "poles", "decided by"]
+        rows = []
         for basis, b in doc["bases"].items():
             pd, ps, pS = PAPER_TABLE[basis]
-            table.add_row(
+            rows.append([
                 basis, f"{b['delta']:.2g} ({pd:.2g})", f"{b['sigma_min']:.2g} ({ps:.2g})",
                 f"{b['sigma_max']:.0f} ({pS:.0f})", "yes" if b["verified"] else "NO",
                 str(b["poles_in_domain"]), b["decided_by"],
-            )
+            ])
+        table, _ = fit_table(con, f"Seed section 2: n = m = 20, +-10 % segments, solver {solver}",
+                             cols, rows, optional=("decided by", "poles"), left=("basis",))
         con.print(table)
         for key, label in (("minimal_seed_form", "seed's formulation"),
                            ("minimal", "orthonormal (Arnoldi) formulation")):

@@ -2,12 +2,11 @@
 
 from __future__ import annotations
 
-import sys
 from pathlib import Path
 
 import click
 
-from ratfit.cli.main import _write_json, main, trust_edited_option
+from ratfit.cli.main import _write_json, console, fit_table, main, trust_edited_option
 from ratfit.cli.options import aliased_option
 from ratfit.errors import InputError
 
@@ -57,6 +56,7 @@ def plot_cmd(fit_path: Path, data_path: Path | None, kind: str, output: Path, ch
     from ratfit.brdf.analytic_models import Model
     from ratfit.viz import pictures as pic
     from ratfit.viz.report import (
+        coordinate_names,
         cos_factor,
         load_data_for,
         load_fit_any,
@@ -76,15 +76,20 @@ def plot_cmd(fit_path: Path, data_path: Path | None, kind: str, output: Path, ch
     if kind in ("slice", "error"):
         if kind == "error" and ds is None:
             raise click.UsageError("--kind error needs --data")
+        if not 0 <= dim < fit.saved.space.dim:
+            raise InputError(f"--dim {dim} out of range: the fit has "
+                             f"{fit.saved.space.dim} input dimension(s)")
         seg = segments_of(fit, ds) if ds is not None else None
         kw = {"lo": None if seg is None else seg.lo, "hi": None if seg is None else seg.hi,
-              "dim": dim, "channel": channel}
+              "dim": dim, "channel": channel, "names": coordinate_names(fit, ds)}
         if kind == "slice":
             pic.plot_slice(fit.saved, output, x=None if ds is None else ds.x,
                            y=None if ds is None else ds.y, **kw)
         else:
             assert ds is not None
             pic.plot_error(fit.saved, output, ds.x, ds.y, **kw)
+        if seg is not None:
+            _say_recheck(fit, seg, data_path)
         click.echo(f"wrote {output}")
         return
     if not fit.is_brdf:
@@ -109,6 +114,15 @@ def plot_cmd(fit_path: Path, data_path: Path | None, kind: str, output: Path, ch
             imgs[name] = pic.render_sphere(f, size=size)
         pic.plot_spheres(imgs, output)
     click.echo(f"wrote {output}")
+
+
+def _say_recheck(fit, seg, data_path: Path) -> None:
+    """The fit verified again on the data's segments, one line per channel."""
+    from ratfit.io.fitfile import segment_check
+
+    for name, met, tot, worst in segment_check(fit.saved, seg):
+        extra = "" if met == tot else f"; MISSED {tot - met}, worst by {worst:.3g}"
+        click.echo(f"checked on {data_path}: channel {name}: {met} of {tot} segments met{extra}")
 
 
 @main.command("report")
@@ -138,8 +152,6 @@ def report_cmd(fit_path: Path, data_path: Path | None, outdir: Path,
 # ---------------------------------------------------------------------------- brdf compare
 def _compare(data_path: Path, fits: tuple[str, ...], models: tuple[str, ...], param: str | None,
              starts: int, as_json: bool) -> None:
-    from rich.console import Console
-    from rich.table import Table
 
     from ratfit.brdf.analytic_models import Model
     from ratfit.viz.report import (
@@ -188,13 +200,14 @@ def _compare(data_path: Path, fits: tuple[str, ...], models: tuple[str, ...], pa
     if as_json:
         _write_json({"data": str(data_path), "n_points": ds.n_points, "rows": rows})
         return
-    con = Console(width=None if sys.stdout.isatty() else 160)
-    table = Table(title=f"{data_path} ({ds.n_points} samples)")
-    for col in ("fit", "channel", "coefs", *METRIC_COLUMNS, "parameters"):
-        table.add_column(col, justify="left" if col in ("fit", "parameters") else "right")
-    for r in compare_table(rows):
-        table.add_row(*r)
+    con = console(160)
+    table, dropped = fit_table(con, f"{data_path} ({ds.n_points} samples)",
+                               ["fit", "channel", "coefs", *METRIC_COLUMNS, "parameters"],
+                               compare_table(rows), optional=("cos_rmse", "log_rmse"),
+                               left=("fit", "parameters"))
     con.print(table)
+    if dropped:
+        con.print(f"(narrow terminal: {', '.join(dropped)} in --json)", highlight=False)
 
 
 def _is_model_file(p: Path) -> bool:

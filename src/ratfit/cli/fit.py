@@ -149,6 +149,7 @@ def eval_cmd(fit_path: Path, input_path: Path, output: Path | None, fmt: str | N
         raise InputError(
             f"{input_path} has {data.dim} input dimension(s) but the fit has {saved.space.dim}"
         )
+    _recheck(saved, data, input_path)
     vals = saved(data.x)
     names = [c.name for c in saved.channels]
     if output is not None and output.suffix.lower() == ".npy":
@@ -169,3 +170,28 @@ def eval_cmd(fit_path: Path, input_path: Path, output: Path | None, fmt: str | N
 
 
 # ---------------------------------------------------------------------------- demo
+
+
+def _recheck(saved: Any, data: Any, input_path: Path) -> None:
+    """Evaluating at the fit's own data (same file content): verify again before writing
+    anything; a sealed file that misses its own segments is refused. On other data with
+    known segments, a missed segment is worth a warning line, not an error."""
+    from ratfit.errors import InputError
+    from ratfit.io.fitfile import file_sha256, recorded_segments, segment_check
+
+    seg = recorded_segments(saved, data)
+    if seg is None:
+        return
+    bad = [(n, met, tot, w) for n, met, tot, w in segment_check(saved, seg) if met < tot]
+    if not bad:
+        return
+    what = "; ".join(f"channel {n}: {tot - met} of {tot} segments missed, worst by {w:.3g}"
+                     for n, met, tot, w in bad)
+    own = saved.provenance.get("input_sha256") == file_sha256(input_path)
+    if own and saved.integrity == "sealed":
+        raise InputError(f"{input_path}: the fit does not meet the segments of the data it "
+                         f"was verified on ({what}): the fit file is corrupt")
+    import warnings
+
+    warnings.warn(f"{input_path}: the fit misses segments of this data ({what})",
+                  stacklevel=2)

@@ -58,6 +58,8 @@ def tolerance_cmd(input_path: Path, width_kind: str, absolute_flag: bool, rtol: 
         if not 0 <= c < k:
             raise InputError(f"channel {c} out of range: {input_path} has {k} channel(s)")
     for label, v in (("--n", n), ("--m", m)):
+        if v is None:
+            raise click.UsageError(f"missing option {label} (a coefficient count)")
         if v > data.n_points:
             raise InputError(f"{label} {v} is more coefficients than the {data.n_points} data "
                              f"point(s) of {input_path} can determine")

@@ -502,3 +502,34 @@ def _short(v: Any) -> str:
 
 def _cut(text: str, n: int = 80) -> str:
     return text if len(text) <= n else text[: n - 3] + "..."
+
+
+# ---------------------------------------------------------------------------- re-verification
+def segment_check(saved: SavedFit, seg: Any) -> list[tuple[str, int, int, float]]:
+    """Per channel (name, segments met, segments, worst violation) of the stored function
+    on ``seg``: a fit file's record of verification is not taken on trust when data is
+    at hand. Non-finite values count as violations."""
+    vals = saved(seg.x)
+    out = []
+    for j, ch in enumerate(saved.channels):
+        v = vals[:, j]
+        with np.errstate(invalid="ignore"):
+            viol = np.maximum(seg.lo[:, j] - v, v - seg.hi[:, j])
+        viol = np.where(np.isfinite(v), viol, np.inf)
+        worst = float(np.max(viol)) if viol.size else 0.0
+        out.append((ch.name, int(np.sum(viol <= 0)), int(viol.size), max(worst, 0.0)))
+    return out
+
+
+def recorded_segments(saved: SavedFit, data: Any) -> Any:
+    """The data's segments with the widths the fit file records (None when unknown)."""
+    spec = saved.provenance.get("segments") if isinstance(saved.provenance, dict) else None
+    if not isinstance(spec, dict) or data.n_channels != len(saved.channels):
+        return None
+    dt, aw = spec.get("dt"), spec.get("abs_width")
+    try:
+        if dt is None and aw is None:
+            return data.segments() if data.lo is not None else None
+        return data.segments(dt=dt, abs_width=aw)
+    except (InputError, TypeError):
+        return None

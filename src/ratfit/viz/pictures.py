@@ -213,8 +213,11 @@ def _slice_rows(x: Array, dim: int, at: Array | None) -> tuple[NDArray[np.bool_]
 def plot_slice(saved: SavedFit, path: str | Path, *, x: ArrayLike | None = None,
                y: ArrayLike | None = None, lo: ArrayLike | None = None,
                hi: ArrayLike | None = None, dim: int = 0, channel: int = 0,
-               at: ArrayLike | None = None, title: str | None = None) -> Path:
-    """Fit vs data along coordinate ``dim`` and the signed error (r - y) with the band."""
+               at: ArrayLike | None = None, title: str | None = None,
+               names: Sequence[str] | None = None) -> Path:
+    """Fit vs data along coordinate ``dim`` and the signed error (r - y) with the band.
+
+    ``names``: the coordinates' names (a parametrization's, or the data's columns)."""
     plt = _plt()
     d = saved.space.dim
     if not 0 <= dim < d:
@@ -252,20 +255,21 @@ def plot_slice(saved: SavedFit, path: str | Path, *, x: ArrayLike | None = None,
         axes[1].plot(xs, err, ".-", ms=3, lw=0.8, color="C3", label="r - y")
         axes[1].axhline(0.0, color="k", lw=0.5)
         axes[1].legend(fontsize=8)
-    names = [f"x{k}" for k in range(d)]
+    names = _names(names, d)
     where = ", ".join(f"{names[k]}={at_pt[k]:.4g}" for k in range(d) if k != dim)
     axes[0].set_title(title or f"channel {saved.channels[channel].name}"
                       + (f" along {names[dim]} at {where}" if where else ""))
+    axes[0].set_ylabel(f"{saved.channels[channel].name}")
     axes[0].legend(fontsize=8)
     axes[1].set_xlabel(names[dim])
-    axes[1].set_ylabel("signed error")
+    axes[1].set_ylabel("signed error r - y")
     fig.tight_layout()
     return _save(fig, path)
 
 
 def plot_error(saved: SavedFit, path: str | Path, x: ArrayLike, y: ArrayLike, *,
                lo: ArrayLike | None = None, hi: ArrayLike | None = None, dim: int = 0,
-               channel: int = 0) -> Path:
+               channel: int = 0, names: Sequence[str] | None = None) -> Path:
     """Signed error r - y at every data point against coordinate ``dim``, with the band."""
     plt = _plt()
     d = saved.space.dim
@@ -281,13 +285,19 @@ def plot_error(saved: SavedFit, path: str | Path, x: ArrayLike, y: ArrayLike, *,
         ax.vlines(xs, la, ha, color="0.8", lw=2, label="allowed")
     ax.plot(xs, err, ".", ms=3, color="C3", label="r - y")
     ax.axhline(0.0, color="k", lw=0.5)
-    ax.set_xlabel(f"x{dim}")
-    ax.set_ylabel("signed error")
+    ax.set_xlabel(_names(names, d)[dim])
+    ax.set_ylabel("signed error r - y")
     ax.set_title(f"channel {saved.channels[channel].name}: signed error at {xa.shape[0]} points "
                  f"(max |r - y| = {np.max(np.abs(err)):.3g})")
     ax.legend(fontsize=8)
     fig.tight_layout()
     return _save(fig, path)
+
+
+def _names(names: Sequence[str] | None, d: int) -> list[str]:
+    if names is not None and len(names) == d:
+        return [str(n) for n in names]
+    return [f"x{k}" for k in range(d)]
 
 
 # ---------------------------------------------------------------------------- BRDF views
@@ -331,27 +341,58 @@ def _nch(fn: BRDFFunction, L: Array, V: Array) -> int:
 
 
 def plot_polar(funcs: dict[str, BRDFFunction], path: str | Path, *,
-               theta_i_deg: Sequence[float] = (0, 30, 60), channel: int = 0) -> Path:
-    """BRDF in the plane of incidence: V from -90 (light side) to +90 deg (mirror side)."""
+               theta_i_deg: Sequence[float] = (0, 30, 60), channel: int = 0,
+               data: BRDFFunction | None = None) -> Path:
+    """BRDF in the plane of incidence: V from -90 (light side) to +90 deg (mirror side).
+
+    ``data``: the measured samples (e.g. a :class:`DataBRDF`), drawn as dots where a
+    sample lies near the plane."""
     plt = _plt()
     tv = np.radians(np.linspace(-89.0, 89.0, 357))
-    fig, axes = plt.subplots(1, len(theta_i_deg), figsize=(4.2 * len(theta_i_deg), 4),
+    fig, axes = plt.subplots(1, len(theta_i_deg), figsize=(4.2 * len(theta_i_deg), 3.2),
                              subplot_kw={"projection": "polar"}, squeeze=False)
     styles = ["-", "--", ":", "-."]
+    handles: dict[str, Any] = {}
     for a, tid in zip(axes.flat, theta_i_deg, strict=True):
         ti = np.radians(tid)
         L = np.tile([np.sin(ti), 0.0, np.cos(ti)], (tv.size, 1))
         V = np.stack([-np.sin(tv), np.zeros_like(tv), np.cos(tv)], axis=1)
+        shown = False
+        top = 0.0
         for i, (name, fn) in enumerate(funcs.items()):
             v = _eval_masked(fn, L, V)
-            a.plot(tv, v[:, min(channel, v.shape[1] - 1)], styles[i % 4], lw=1.2, label=name)
+            v = v[:, min(channel, v.shape[1] - 1)]
+            if np.any(np.isfinite(v)):
+                shown = True
+                top = max(top, float(np.nanmax(v)))
+            (h,) = a.plot(tv, v, styles[i % 4], lw=1.2, label=name)
+            handles.setdefault(name, h)
+        if data is not None:
+            v = _eval_masked(data, L, V)
+            v = v[:, min(channel, v.shape[1] - 1)]
+            if np.any(np.isfinite(v)):
+                shown = True
+                top = max(top, float(np.nanmax(v)))
+            (h,) = a.plot(tv[::6], v[::6], ".", ms=4, color="k", label="data (nearest)")
+            handles.setdefault("data (nearest)", h)
         a.set_theta_zero_location("N")
         a.set_thetamin(-90)
         a.set_thetamax(90)
-        a.plot([-ti], [a.get_ylim()[1]], "o", color="gold", ms=8)
-        a.set_title(f"incidence {tid:g} deg", fontsize=9)
-    axes[0, 0].legend(fontsize=8, loc="lower left")
-    fig.tight_layout()
+        top = top if top > 0 else 1.0
+        a.set_ylim(0.0, 1.08 * top)
+        from matplotlib.ticker import MaxNLocator
+
+        a.yaxis.set_major_locator(MaxNLocator(3))
+        a.tick_params(axis="y", labelsize=7)
+        a.set_rlabel_position(90)
+        a.plot([-ti], [top], "o", color="gold", ms=8)
+        a.set_title(f"incidence {tid:g} deg (gold dot: light)", fontsize=9)
+        if not shown:
+            a.text(0.0, 0.5 * top, "outside the fit's domain", ha="center", va="center",
+                   fontsize=9, color="0.3")
+    fig.legend(list(handles.values()), list(handles), loc="lower center",
+               ncol=max(1, len(handles)), fontsize=8, frameon=False)
+    fig.tight_layout(rect=(0, 0.08, 1, 1))
     return _save(fig, path)
 
 

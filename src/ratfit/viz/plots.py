@@ -49,21 +49,30 @@ def plot_fits(seg: Segments, fits: dict[str, RationalFunction | None], path: str
     plt = _figure()
     x = seg.x[:, 0]
     xd = _dense(seg)
-    fig, axes = plt.subplots(1, 2, figsize=(12, 4))
+    fig, axes = plt.subplots(1, 2, figsize=(13, 5))
     for ax in axes:
         ax.fill_between(x, seg.lo[:, 0], seg.hi[:, 0], color="0.8", label="segments")
         for name, rf in fits.items():
             if rf is not None:
                 ax.plot(xd, rf(xd), lw=1, label=name)
         ax.set_xlabel("x")
-    axes[0].set_ylim(min(0.0, seg.lo.min()) - 1, seg.hi.max() * 1.2)
+        ax.set_ylabel("y = f(x) and r(x)")
+    span = seg.hi.max() - min(0.0, seg.lo.min())
+    axes[0].set_ylim(min(0.0, seg.lo.min()) - 0.02 * span, seg.hi.max() + 0.05 * span)
+    axes[0].set_xlim(x.min(), x.max())
     axes[0].set_title("Figure 2: fits and the segment envelope")
+    # zoom on where the last quarter of the domain has something to show
     zoom = x > x.min() + 0.75 * (x.max() - x.min())
-    axes[1].set_xlim(x[zoom].min(), x.max())
+    xz, hz = x[zoom], seg.hi[zoom, 0]
+    busy = hz > hz.min() + 0.02 * (hz.max() - hz.min())
+    a, b = (xz[busy].min(), xz[busy].max()) if busy.any() else (xz.min(), xz.max())
+    pad = 0.3 * (b - a) if b > a else 0.05 * (x.max() - x.min())
+    axes[1].set_xlim(max(a - pad, xz.min()), min(b + pad, x.max()))
     lo, hi = seg.lo[zoom, 0].min(), seg.hi[zoom, 0].max()
-    axes[1].set_ylim(lo - 0.3 * (hi - lo), hi + 0.3 * (hi - lo))
-    axes[1].set_title("zoom on the last quarter of the domain")
+    axes[1].set_ylim(lo - 0.05 * (hi - lo), hi + 0.1 * (hi - lo))
+    axes[1].set_title(f"zoom: x in [{axes[1].get_xlim()[0]:.3g}, {axes[1].get_xlim()[1]:.3g}]")
     axes[0].legend(fontsize=8)
+    fig.tight_layout()
     return _save(fig, Path(path))
 
 

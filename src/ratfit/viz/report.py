@@ -186,6 +186,30 @@ class ReportResult:
     pictures: list[Path] = field(default_factory=list)
     metrics: list[dict[str, Any]] = field(default_factory=list)
     albedo: dict[str, Any] | None = None
+    # the fit re-verified on the data's segments: (met, total, worst violation) per channel
+    recheck: list[tuple[str, int, int, float]] | None = None
+
+
+def coordinate_names(fit: LoadedFit, ds: Dataset | None) -> list[str]:
+    """Names of the fit's input coordinates: the parametrization's, else the data's."""
+    d = fit.saved.space.dim
+    if fit.is_brdf:
+        from ratfit.brdf.parametrizations import get_parametrization
+
+        coords = list(get_parametrization(str(fit.param)).coords)
+        if len(coords) == d:
+            return coords
+    if ds is not None and len(ds.input_names) == d:
+        return list(ds.input_names)
+    return [f"x{k}" for k in range(d)]
+
+
+def recheck(fit: LoadedFit, seg: Any) -> list[tuple[str, int, int, float]]:
+    """Verify the stored function again on the data's segments (a fit file's record of
+    verification is not taken on trust when the data is at hand)."""
+    from ratfit.io.fitfile import segment_check
+
+    return segment_check(fit.saved, seg)
 
 
 def write_report(fit_path: str | os.PathLike[str], data_path: str | os.PathLike[str] | None,
@@ -213,17 +237,21 @@ def write_report(fit_path: str | os.PathLike[str], data_path: str | os.PathLike[
                 res.metrics += model_metrics(mf, fit.param, ds)
         else:
             res.metrics = _plain_metrics(fit, ds)
+    if seg is not None:
+        res.recheck = recheck(fit, seg)
     pics: list[tuple[str, Path]] = []
     dx = None if ds is None else ds.x
     dy = None if ds is None else ds.y
+    names = coordinate_names(fit, ds)
     for j in range(len(fit.saved.channels)):
-        pics.append((f"channel {fit.channel_names[j]}: fit and data along x0, signed error",
-                     pic.plot_slice(fit.saved, out / f"slice_{j}.png", x=dx, y=dy, lo=lo,
-                                    hi=hi, channel=j)))
+        pics.append((f"channel {fit.channel_names[j]}: fit and data along {names[0]}, "
+                     "signed error", pic.plot_slice(fit.saved, out / f"slice_{j}.png", x=dx,
+                                                    y=dy, lo=lo, hi=hi, channel=j,
+                                                    names=names)))
         if ds is not None:
             pics.append((f"channel {fit.channel_names[j]}: signed error at every data point",
                          pic.plot_error(fit.saved, out / f"error_{j}.png", dx, dy, lo=lo,
-                                        hi=hi, channel=j)))
+                                        hi=hi, channel=j, names=names)))
     if fit.is_brdf:
         assert fit.param is not None
         cf = ds is not None and cos_factor(ds)
@@ -236,8 +264,9 @@ def write_report(fit_path: str | os.PathLike[str], data_path: str | os.PathLike[
                                    fold_phi_d=bool(ds.meta.get("fold_phi_d")))
         pics.append(("BRDF against theta_h for several theta_d (phi_d = 90 deg)",
                      pic.plot_brdf_slices(funcs, out / "brdf_slices.png")))
-        pics.append(("BRDF in the plane of incidence",
-                     pic.plot_polar(funcs, out / "polar.png")))
+        pics.append(("BRDF in the plane of incidence (dots: nearest data samples)"
+                     if data_fn is not None else "BRDF in the plane of incidence",
+                     pic.plot_polar(funcs, out / "polar.png", data=data_fn)))
         imgs = {}
         if data_fn is not None:
             imgs["data"] = pic.render_sphere(data_fn, size=size)
@@ -270,6 +299,24 @@ def _plain_metrics(fit: LoadedFit, ds: Dataset) -> list[dict[str, Any]]:
     return out
 
 
+def _coverage_note(alb: dict[str, Any]) -> str:
+    cov = [c for c in np.ravel(alb.get("coverage") or []) if c is not None]
+    if not cov or min(cov) >= 0.999:
+        return ""
+    return (f"; computed only over the part of the hemisphere inside the fit's domain "
+            f"(down to {100 * min(cov):.0f} % of it), so energy outside is not counted")
+
+
+def _num(v: Any) -> str:
+    """A metric for people: 4 significant digits, not 16."""
+    if v is None:
+        return "-"
+    try:
+        return f"{float(v):.4g}"
+    except (TypeError, ValueError):
+        return html.escape(str(v))
+
+
 def _plot_albedo(alb, names: list[str], path: Path) -> Path:
     from ratfit.viz.pictures import _plt, _save
 
@@ -277,6 +324,9 @@ def _plot_albedo(alb, names: list[str], path: Path) -> Path:
     fig, ax = plt.subplots(figsize=(6, 3.5))
     for j, n in enumerate(names):
         ax.plot(np.degrees(alb.theta_i), alb.albedo[:, j], ".-", label=n)
+    if not np.any(np.isfinite(alb.albedo)):
+        ax.text(0.5, 0.5, "albedo not available: the fit's domain does not cover the "
+                "hemisphere", transform=ax.transAxes, ha="center", va="center", fontsize=9)
     ax.axhline(1.0, color="r", lw=0.8, ls="--", label="energy limit")
     ax.set_xlabel("incidence theta_i (deg)")
     ax.set_ylabel("directional albedo")
@@ -297,19 +347,34 @@ def _html(fit: LoadedFit, data_path, res: ReportResult, pics, version: str) -> s
                            for r in rows) + "</table>")
     diag = ("<table><tr><th>channel</th><th>n</th><th>m</th><th>verified</th>"
             "<th>max violation</th><th>Linf</th><th>max rel. error</th></tr>")
+    sealed = getattr(fit.saved, "integrity", "sealed") == "sealed"
     for ch in fit.saved.channels:
         s = ch.summary
+        ok = s.get("verified") is True and sealed
         diag += (f"<tr><td>{e(ch.name)}</td><td>{ch.rational.n}</td><td>{ch.rational.m}</td>"
-                 f"<td>{'yes' if s.get('verified') else 'NO'}</td>"
-                 f"<td>{e(str(s.get('max_violation')))}</td><td>{e(str(s.get('linf')))}</td>"
-                 f"<td>{e(str(s.get('max_rel_error')))}</td></tr>")
+                 f"<td>{'yes' if ok else 'NO'}</td>"
+                 f"<td>{_num(s.get('max_violation'))}</td><td>{_num(s.get('linf'))}</td>"
+                 f"<td>{_num(s.get('max_rel_error'))}</td></tr>")
     diag += "</table>"
+    if not sealed:
+        diag += ("<p class='bad'>The fit file was edited after ratfit wrote it (or predates "
+                 "content digests): its verification record is not trusted.</p>")
+    if res.recheck is not None:
+        diag += "<p>Checked again on the data's segments: " + "; ".join(
+            f"{e(n)}: {met} of {tot} met" + (
+                "" if met == tot else f", <b class='bad'>worst violation {_num(w)}</b>")
+            for n, met, tot, w in res.recheck) + ".</p>"
     alb = ""
     if res.albedo is not None:
         mx = res.albedo["max_albedo"]
-        alb = (f"<p>Maximum directional albedo: {e(f'{mx:.4g}' if mx is not None else 'n/a')}"
-               + (" &mdash; <b class='bad'>reflects more than it receives</b>"
-                  if res.albedo["flagged"] else " (energy check passed)") + "</p>")
+        if mx is None or not np.isfinite(mx):
+            alb = ("<p>Directional albedo: not available (the fit's domain does not cover "
+                   "the hemisphere; no energy check).</p>")
+        else:
+            alb = (f"<p>Maximum directional albedo: {mx:.4g}"
+                   + (" &mdash; <b class='bad'>reflects more than it receives</b>"
+                      if res.albedo["flagged"] else " (at most 1: energy check passed)")
+                   + _coverage_note(res.albedo) + "</p>")
     figs = "".join(
         f"<figure><img src='{e(p.name)}' alt='{e(cap)}'><figcaption>{e(cap)}</figcaption>"
         "</figure>" for cap, p in pics)
@@ -327,8 +392,9 @@ figure {{ margin: 1.5em 0; }} img {{ max-width: 100%; }} .bad {{ color: #b00; }}
 basis {e(fit.saved.space.family.name)}, {fit.saved.space.dim} variable(s). ratfit {e(version)}.</p>
 <h2>Fit diagnostics</h2>{diag}
 <h2>Metrics on the data</h2>{table or "<p>No data given.</p>"}
-<p>rel. RMSE = RMSE / RMS(data); log RMSE on log(1 + f); cos RMSE weighs errors by
-cos(theta_l).</p>
+<p>RMSE = sqrt(mean((fit - data)^2)); rel. RMSE = sqrt(mean(((fit - data) / data)^2))
+over the samples where data != 0; log RMSE: the RMSE of log(1 + fit) - log(1 + data);
+cos RMSE weighs each error by cos(theta_l); Linf = max |fit - data|.</p>
 {alb}
 <h2>Pictures</h2>{figs}
 </body></html>
