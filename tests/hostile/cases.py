@@ -86,7 +86,7 @@ TEXT_DAMAGES: dict[str, Callable[[str], str | bytes]] = {
     "drop-token": lambda t: _edit_line(t, 1, lambda k: k[:-1]),
     "extra-token": lambda t: _edit_line(t, -2, lambda k: [*k, "1.0", "2.0"]),
     "y-1e308": lambda t: _edit_line(t, 0, _set_tok(-1, "1e308")),
-    "x-1e300": lambda t: _edit_line(t, -1, _set_tok(0, "1e300")),
+    "x-1e305": lambda t: _edit_line(t, -1, _set_tok(0, "1e305")),
     "nul-bytes": lambda t: (t[: len(t) // 2].encode() + b"\x00\xff\xfe\x00"
                            + t[len(t) // 2:].encode()),
     "empty": lambda t: "",

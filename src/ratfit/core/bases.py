@@ -200,8 +200,8 @@ class PolynomialSpace:
         dom = np.array(domain, dtype=float).reshape(-1, 2)
         if not np.all(np.isfinite(dom)):
             raise InputError(f"domain must be finite, got {dom.tolist()}")
-        if float(np.max(np.abs(dom), initial=0.0)) > 1e150:
-            raise InputError(f"domain bounds beyond 1e150 in magnitude: {dom.tolist()}")
+        if float(np.max(np.abs(dom), initial=0.0)) > 1e300:
+            raise InputError(f"domain bounds beyond 1e300 in magnitude: {dom.tolist()}")
         if np.any(dom[:, 1] <= dom[:, 0]):
             bad = int(np.flatnonzero(dom[:, 1] <= dom[:, 0])[0])
             raise InputError(

@@ -18,10 +18,11 @@ from ratfit.errors import InputError
 __all__ = ["Segments", "check_points", "check_values"]
 
 
-# Values beyond this overflow the squares and norms of the QP rows (lo * q(x) squared);
-# an x range narrower than SPAN_RTOL of its magnitude leaves too few digits to tell
-# the points apart once mapped to [-1, 1].
-MAX_MAGNITUDE = 1e150
+# Values beyond this leave no headroom below the float range (1.8e308): a width or a
+# sum of two bounds overflows (channels are scaled by a power of two before fitting,
+# so large values below it are fine); an x range narrower than SPAN_RTOL of its
+# magnitude leaves too few digits to tell the points apart once mapped to [-1, 1].
+MAX_MAGNITUDE = 1e300
 SPAN_RTOL = 1e-12
 # The n-D pole check samples at least 3^d points and a degree-s shell has O(s^d)
 # basis functions: beyond this many input dimensions fits are out of reach.
