@@ -532,6 +532,27 @@ BATCH_CASES: dict[str, Build] = {
 }
 
 
+def _npz_members(members: dict[str, bytes]) -> Build:
+    def b(c: Ctx) -> tuple[list[Any], list[Path]]:
+        import zipfile
+
+        p = c.tmp / "d.npz"
+        with zipfile.ZipFile(p, "w") as z:
+            for name, body in members.items():
+                z.writestr(name, body)
+        return ["fit", p, "--dt", "0.1", "-o", c.out], [c.out]
+    return b
+
+
+NPZ_CASES: dict[str, Build] = {
+    "members-not-npy": _npz_members({"x.npy": b"hello", "y.npy": b"abc"}),
+    "members-text": _npz_members({"x.txt": b"1 2 3", "y.txt": b"4 5 6"}),
+    "member-truncated-npy": _npz_members({"x.npy": b"\x93NUMPY\x01\x00v\x00{'descr'",
+                                          "y.npy": b""}),
+    "empty-zip": _npz_members({}),
+}
+
+
 # --------------------------------------------------------------------------- usage
 COMMANDS = (
     ["fit"], ["eval"], ["cdf"], ["sample"], ["tolerance"], ["batch"], ["export"], ["plot"],
@@ -569,4 +590,5 @@ def all_cases() -> list[Case]:
     cases = data_cases() + binary_cases() + fit_file_cases() + usage_cases()
     cases += [Case(f"option-{k}", b) for k, b in OPTION_CASES.items()]
     cases += [Case(f"batch-{k}", b) for k, b in BATCH_CASES.items()]
+    cases += [Case(f"npz-{k}", b) for k, b in NPZ_CASES.items()]
     return cases

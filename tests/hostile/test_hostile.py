@@ -11,6 +11,7 @@ import pytest
 from click.testing import CliRunner
 
 from ratfit.cli import main
+
 from .cases import Case, Ctx, all_cases
 
 CASES = all_cases()

@@ -799,6 +799,10 @@ def _read_npz(src: str, data: bytes) -> Dataset:
         else:
             why = f"corrupt or truncated: {msg}"
         raise FileFormatError(f"{src}: not a readable .npz file ({why})") from None
+    for k, a in arrays.items():
+        if not isinstance(a, np.ndarray):  # a zip member that is not a .npy array
+            raise FileFormatError(f"{src}: .npz member {k!r} is not a .npy array "
+                                  f"({type(a).__name__})")
     if "x" not in arrays:
         raise FileFormatError(f"{src}: .npz has no 'x' array; keys found: {sorted(keys)}")
     if ("lo" in arrays) != ("hi" in arrays):
