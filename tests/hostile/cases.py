@@ -586,8 +586,34 @@ def usage_cases() -> list[Case]:
     return cases
 
 
+def _comma_column(src: str) -> Callable[[Ctx], Path]:
+    """One column of the file's y values written with decimal commas ("0,0082")."""
+    def make(c: Ctx) -> Path:
+        text = (c.data / src).read_bytes().decode("latin-1")
+        lines = text.split("\n")
+        ys = [lines[i].split()[-1] for i in _numeric_lines(text)]
+        body = "\n".join(f"{float(v):.4f}".replace(".", ",") for v in ys) + "\n"
+        return c.write("comma.csv", body)
+    return make
+
+
+def misparse_cases() -> list[Case]:
+    cases = []
+    for src in TEXT_FILES_1D:
+        mk = _comma_column(src)
+        for cmd, build in (
+            ("fit", lambda c, mk=mk: (["fit", mk(c), "--dt", "0.1", "-o", c.out], [c.out])),
+            ("cdf", lambda c, mk=mk: (["cdf", mk(c), "-o", c.out], [c.out])),
+            ("tolerance", lambda c, mk=mk: (["tolerance", mk(c), "--n", "2", "--m", "2"], [])),
+            ("eval", lambda c, mk=mk: (["eval", c.fit1d, mk(c), "-o", c.out], [c.out])),
+        ):
+            cases.append(Case(f"comma-{cmd}-{Path(src).stem}", build, "decimal comma"))
+    return cases
+
+
 def all_cases() -> list[Case]:
     cases = data_cases() + binary_cases() + fit_file_cases() + usage_cases()
+    cases += misparse_cases()
     cases += [Case(f"option-{k}", b) for k, b in OPTION_CASES.items()]
     cases += [Case(f"batch-{k}", b) for k, b in BATCH_CASES.items()]
     cases += [Case(f"npz-{k}", b) for k, b in NPZ_CASES.items()]
