@@ -77,7 +77,7 @@ def _print_batch(summary) -> None:
     table, _ = fit_table(con, f"ratfit batch: {len(summary.rows)} task(s)",
                          ["ok", "no fit", "failed", "run now", "resumed"],
                          [[str(counts["ok"]), str(counts["no-fit"]), str(counts["failed"]),
-                           str(summary.fitted), str(summary.skipped)]])
+                           str(summary.fitted), str(summary.skipped)]], boxed=True)
     con.print(table)
     for r in summary.rows:
         if r["status"] == "failed":

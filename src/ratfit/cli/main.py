@@ -214,7 +214,8 @@ def console(pipe_width: int = 120) -> Any:
 
 
 def fit_table(con: Any, title: str, columns: list[str], rows: list[list[str]],
-              optional: tuple[str, ...] = (), left: tuple[str, ...] = ()) -> tuple[Any, list[str]]:
+              optional: tuple[str, ...] = (), left: tuple[str, ...] = (),
+              boxed: bool = False) -> tuple[Any, list[str]]:
     """A table that fits the console: ``optional`` columns are dropped (in that order)
     while it is too wide, and what remains wraps instead of ending in "...": a number
     is never shown cut short. Returns the table and the names of dropped columns."""
@@ -224,7 +225,8 @@ def fit_table(con: Any, title: str, columns: list[str], rows: list[list[str]],
     dropped: list[str] = []
     while True:
         keep = [j for j, c in enumerate(columns) if c not in dropped]
-        table = Table(title=title, box=box.SIMPLE_HEAD, collapse_padding=True, pad_edge=False)
+        table = (Table(title=title) if boxed else
+                 Table(title=title, box=box.SIMPLE_HEAD, collapse_padding=True, pad_edge=False))
         for j in keep:
             table.add_column(columns[j], justify="left" if columns[j] in left else "right",
                              overflow="fold")
