@@ -390,8 +390,11 @@ def _space(d: Any, where: str) -> PolynomialSpace:
                            or not all(_is_int(v) and 0 <= v <= 10_000 for v in md)):
         raise FileFormatError(f"{where}: space 'max_degree' must be {arr.shape[0]} integer "
                               "degree caps >= 0")
+    var = d.get("variable", "x")
+    if not isinstance(var, str):
+        raise FileFormatError(f"{where}: space 'variable' must be a string, got {_kind(var)}")
     try:
-        return PolynomialSpace(fam, arr, iset, None if md is None else tuple(md))
+        return PolynomialSpace(fam, arr, iset, None if md is None else tuple(md), variable=var)
     except InputError as exc:
         raise FileFormatError(f"{where}: {exc}") from None
 
