@@ -26,9 +26,10 @@ from numpy.typing import ArrayLike, NDArray
 
 from ratfit.brdf.parametrizations import get_parametrization
 from ratfit.core.bases import PolynomialSpace
-from ratfit.core.qp import ArnoldiSystem, ConstraintSystem
+from ratfit.core.qp import ArnoldiSystem
 from ratfit.core.rational import RationalFunction
 from ratfit.core.segments import Segments
+from ratfit.core.systems import AppendedRows, RowSystem
 from ratfit.core.validation import check_width
 from ratfit.core.verify import Verification, verify
 from ratfit.errors import FileFormatError, InputError
@@ -240,7 +241,7 @@ class BRDFFitter(RationalFitter):
                            pole_free=pole_free, pole_grid=pole_grid)
 
     def _split_system(self, space: PolynomialSpace, seg: Segments, j: int, n: int, m: int,
-                      like: ConstraintSystem | None = None) -> ConstraintSystem | None:
+                      like: RowSystem | None = None) -> RowSystem | None:
         system = super()._search_parts(space, seg).systems.split(space, seg, j, n, m, like=like)
         if not (self.physical or self.positive_q) or not isinstance(system, ArnoldiSystem):
             return system
@@ -262,7 +263,7 @@ class BRDFFitter(RationalFitter):
             grid = np.concatenate([grid, *extra])
         if grid.size == 0:
             return system
-        return _ValidRows(system, space.to_window(grid), numerator=self.physical)
+        return _valid_rows(system, space.to_window(grid), numerator=self.physical)
 
     def _valid_grid_for(self, domain: ArrayLike) -> Array | None:
         dom = np.asarray(domain, dtype=float)
@@ -314,71 +315,20 @@ class _BRDFSystems:
         return self.fitter._split_system(space, seg, j, n, m, like=like)
 
 
-class _ValidRows(ConstraintSystem):
-    """An ArnoldiSystem plus, per valid configuration g, the row q(g) / |psi(g)| >= delta
-    and (``numerator``) the row p(g) / |phi(g)| >= delta.
+def _valid_rows(base: ArnoldiSystem, t_grid: Array, numerator: bool = True) -> AppendedRows:
+    """``base`` plus, per valid configuration g, the row q(g) / |psi(g)| >= delta and
+    (``numerator``) the row p(g) / |phi(g)| >= delta.
 
-    Row protocol of :class:`ratfit.core.qp.ConstraintSystem`: rows 0 .. 2N-1 are the
-    data's, then the grid's q rows, then its p rows; the active set starts from
-    data rows only and adds grid rows where they are violated.
+    The grid counts as points, so :func:`~ratfit.core.qp.solve_fixed` always works
+    on an active set that starts from the data's rows and adds grid rows where they
+    are violated (a dense grid is mostly slack; all of it in one QP is slow).
     """
-
-    def __init__(self, base: ArnoldiSystem, t_grid: Array, numerator: bool = True) -> None:
-        self.base = base
-        self.space = base.space
-        # Counts the grid too: solve_fixed then always works on an active set
-        # (a dense grid is mostly slack; all of it in one QP is slow).
-        self.n_points = base.n_points + len(t_grid)
-        self.t = base.t
-        self.n, self.m = base.n, base.m
-        psi = base.q_basis.design(t_grid, base.m, window=True)
-        self.psi = psi / np.linalg.norm(psi, axis=1)[:, None]
-        if numerator:
-            phi = base.p_basis.design(t_grid, base.n, window=True)
-            self.phi = phi / np.linalg.norm(phi, axis=1)[:, None]
-        else:
-            self.phi = np.zeros((0, base.n))
-
-    @property
-    def n_rows(self) -> int:
-        return self.base.n_rows + self.psi.shape[0] + self.phi.shape[0]
-
-    def prepare(self, n_max: int, m_max: int) -> None:
-        pass
-
-    def conditioning(self, n: int, m: int) -> tuple[float, float, float]:
-        return self.base.conditioning(n, m)
-
-    def rows(self, n: int, m: int, ridx: NDArray[np.int64] | None = None) -> Array:
-        nb, nq = self.base.n_rows, self.psi.shape[0]
-        if ridx is None:
-            ridx = np.arange(self.n_rows)
-        out = np.zeros((ridx.size, n + m))
-        data = ridx < nb
-        if data.any():
-            out[data] = self.base.rows(n, m, ridx[data])
-        qrow = (ridx >= nb) & (ridx < nb + nq)
-        out[qrow, n:] = self.psi[ridx[qrow] - nb]
-        prow = ridx >= nb + nq
-        out[prow, :n] = self.phi[ridx[prow] - nb - nq]
-        return out
-
-    def row_norms(self, n: int, m: int) -> Array:
-        return np.concatenate([self.base.row_norms(n, m),
-                               np.ones(self.psi.shape[0] + self.phi.shape[0])])
-
-    def residuals(self, n: int, m: int, c: Array) -> Array:
-        return np.concatenate([self.base.residuals(n, m, c), self.psi @ c[n:],
-                               self.phi @ c[:n]])
-
-    def initial_rows(self, size: int) -> NDArray[np.int64]:
-        return self.base.initial_rows(size)
-
-    def to_rational(self, n: int, m: int, c: Array) -> RationalFunction:
-        return self.base.to_rational(n, m, c)
-
-    def q_design(self, t: Array, m: int) -> Array:
-        return self.base.q_design(t, m)
+    psi = base.q_basis.design(t_grid, base.m, window=True)
+    phi = base.p_basis.design(t_grid, base.n, window=True) if numerator else None
+    return AppendedRows(
+        base, base.n, base.m, psi=psi / np.linalg.norm(psi, axis=1)[:, None],
+        phi=None if phi is None else phi / np.linalg.norm(phi, axis=1)[:, None],
+        start_active=False, extra_points=len(t_grid))
 
 
 def valid_grid(param: str, domain: ArrayLike, points: int = 200_000) -> Array | None:

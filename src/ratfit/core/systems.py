@@ -74,23 +74,86 @@ class RowSystem(Protocol):
         ...
 
 
-class PositiveDenominator:
-    """``base`` plus one row ``q(z) / ||psi(z)|| >= delta`` per point z added.
+class AppendedRows:
+    """``base`` plus unit rows on one coefficient block each: ``q(z) / ||psi(z)|| >= delta``
+    (rows of ``psi``, acting on c[n:]) and ``p(z) / ||phi(z)|| >= delta`` (``phi``, on c[:n]).
 
-    Rows ``0 .. base.n_rows - 1`` are the base's, then one per point in the
-    order the points were added. The active set of
-    :func:`~ratfit.core.qp.solve_fixed` starts with every q row (they exist
-    because a candidate needed them) and adds the base's rows as usual.
+    Rows ``0 .. base.n_rows - 1`` are the base's, then the q rows, then the p rows.
+    ``start_active``: the active set of :func:`~ratfit.core.qp.solve_fixed` starts
+    with every appended row (rows that exist because a candidate needed them) or
+    with the base's rows only (a dense grid, mostly slack, joins where violated).
+    ``extra_points`` count toward ``n_points``, so a large grid makes
+    ``solve_fixed`` work on an active set rather than on every row at once.
     """
 
-    def __init__(self, base: RowSystem, n: int, m: int) -> None:
+    def __init__(self, base: RowSystem, n: int, m: int, psi: Array | None = None,
+                 phi: Array | None = None, *, start_active: bool = True,
+                 extra_points: int = 0) -> None:
         self.base = base
         self.n, self.m = int(n), int(m)
         self.space = base.space
-        self.n_points = base.n_points
+        self.n_points = base.n_points + int(extra_points)
         self.t = base.t
+        self.psi = np.zeros((0, self.m)) if psi is None else psi
+        self.phi = np.zeros((0, self.n)) if phi is None else phi
+        self.start_active = start_active
+
+    @property
+    def n_rows(self) -> int:
+        return self.base.n_rows + self.psi.shape[0] + self.phi.shape[0]
+
+    def prepare(self, n_max: int, m_max: int) -> None:
+        self.base.prepare(n_max, m_max)
+
+    def conditioning(self, n: int, m: int) -> tuple[float, float, float]:
+        return self.base.conditioning(n, m)
+
+    def rows(self, n: int, m: int, ridx: NDArray[np.int64] | None = None) -> Array:
+        nb, nq = self.base.n_rows, self.psi.shape[0]
+        if ridx is None:
+            ridx = np.arange(self.n_rows)
+        out = np.zeros((ridx.size, n + m))
+        data = ridx < nb
+        if data.any():
+            out[data] = self.base.rows(n, m, ridx[data])
+        qrow = (ridx >= nb) & (ridx < nb + nq)
+        out[qrow, n:] = self.psi[ridx[qrow] - nb]
+        prow = ridx >= nb + nq
+        out[prow, :n] = self.phi[ridx[prow] - nb - nq]
+        return out
+
+    def row_norms(self, n: int, m: int) -> Array:
+        return np.concatenate([self.base.row_norms(n, m),
+                               np.ones(self.psi.shape[0] + self.phi.shape[0])])
+
+    def residuals(self, n: int, m: int, c: Array) -> Array:
+        return np.concatenate([self.base.residuals(n, m, c), self.psi @ c[n:],
+                               self.phi @ c[:n]])
+
+    def initial_rows(self, size: int) -> NDArray[np.int64]:
+        first = self.base.initial_rows(size)
+        if not self.start_active:
+            return first
+        nb = self.base.n_rows
+        return np.concatenate([first, nb + np.arange(self.n_rows - nb)])
+
+    def to_rational(self, n: int, m: int, c: Array) -> RationalFunction:
+        return self.base.to_rational(n, m, c)
+
+    def q_design(self, t: Array, m: int) -> Array:
+        return self.base.q_design(t, m)
+
+
+class PositiveDenominator(AppendedRows):
+    """``base`` plus one row ``q(z) / ||psi(z)|| >= delta`` per point z added.
+
+    The rows come in the order the points were added, and the active set starts
+    with all of them (they exist because a candidate needed them).
+    """
+
+    def __init__(self, base: RowSystem, n: int, m: int) -> None:
+        super().__init__(base, n, m)
         self.z = np.zeros((0, base.t.shape[1]))
-        self.psi = np.zeros((0, self.m))
 
     @property
     def n_cuts(self) -> int:
@@ -109,44 +172,6 @@ class PositiveDenominator:
         self.z = np.vstack([self.z, z[keep]])
         self.psi = np.vstack([self.psi, psi[keep] / nrm[keep, None]])
         return int(keep.sum())
-
-    # -- the row protocol ---------------------------------------------------------------
-    @property
-    def n_rows(self) -> int:
-        return self.base.n_rows + self.n_cuts
-
-    def prepare(self, n_max: int, m_max: int) -> None:
-        self.base.prepare(n_max, m_max)
-
-    def conditioning(self, n: int, m: int) -> tuple[float, float, float]:
-        return self.base.conditioning(n, m)
-
-    def rows(self, n: int, m: int, ridx: NDArray[np.int64] | None = None) -> Array:
-        nb = self.base.n_rows
-        if ridx is None:
-            ridx = np.arange(self.n_rows)
-        out = np.zeros((ridx.size, n + m))
-        data = ridx < nb
-        if data.any():
-            out[data] = self.base.rows(n, m, ridx[data])
-        out[~data, n:] = self.psi[ridx[~data] - nb]
-        return out
-
-    def row_norms(self, n: int, m: int) -> Array:
-        return np.concatenate([self.base.row_norms(n, m), np.ones(self.n_cuts)])
-
-    def residuals(self, n: int, m: int, c: Array) -> Array:
-        return np.concatenate([self.base.residuals(n, m, c), self.psi @ c[n:]])
-
-    def initial_rows(self, size: int) -> NDArray[np.int64]:
-        nb = self.base.n_rows
-        return np.concatenate([self.base.initial_rows(size), nb + np.arange(self.n_cuts)])
-
-    def to_rational(self, n: int, m: int, c: Array) -> RationalFunction:
-        return self.base.to_rational(n, m, c)
-
-    def q_design(self, t: Array, m: int) -> Array:
-        return self.base.q_design(t, m)
 
 
 def domain_grid(dim: int, n_data: int) -> Array:
