@@ -1,32 +1,6 @@
-"""Batch fitting of many inputs x channels x settings on Dask distributed.
-"""
+"""Batch fitting of many inputs x channels x settings on Dask distributed."""
 
-from ratfit.batch.runner import (
-    COLUMNS,
-    FIT_PARAMS,
-    BatchInterrupted,
-    BatchSummary,
-    MissingDependency,
-    Task,
-    execute,
-    load_manifest,
-    plan,
-    run,
-    settings_id,
-    write_summary,
-)
+from ratfit.batch import runner as _runner
+from ratfit.batch.runner import *  # noqa: F403  (the public names, listed once, there)
 
-__all__ = [
-    "BatchInterrupted",
-    "BatchSummary",
-    "COLUMNS",
-    "FIT_PARAMS",
-    "MissingDependency",
-    "Task",
-    "execute",
-    "load_manifest",
-    "plan",
-    "run",
-    "settings_id",
-    "write_summary",
-]
+__all__ = list(_runner.__all__)

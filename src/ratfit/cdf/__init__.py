@@ -1,56 +1,8 @@
-"""Monotone rational CDFs (seed section 3) and sampling from them.
-"""
+"""Monotone rational CDFs (seed section 3) and sampling from them."""
 
-from ratfit.cdf.monotone import (
-    DEFAULT_ABS_WIDTH,
-    FORMS,
-    CDFVerification,
-    MonotoneFitter,
-    MonotoneSystem,
-    cdf_from_bounds,
-    cdf_from_pdf,
-    cdf_from_samples,
-    cdf_from_table,
-    cdf_segments,
-    dkw_epsilon,
-    fit_cdf,
-    monotone_envelope,
-    rational_derivative,
-    verify_cdf,
-)
-from ratfit.cdf.sampling import (
-    CDF2D,
-    RationalCDF,
-    beckmann_cos_cdf,
-    beckmann_cos_pdf,
-    fit_cdf_2d,
-    ggx_theta_cdf,
-    ggx_theta_pdf,
-    ks_statistic,
-)
+from ratfit.cdf import monotone as _monotone
+from ratfit.cdf import sampling as _sampling
+from ratfit.cdf.monotone import *  # noqa: F403  (the public names, listed once, there)
+from ratfit.cdf.sampling import *  # noqa: F403
 
-__all__ = [
-    "CDF2D",
-    "CDFVerification",
-    "DEFAULT_ABS_WIDTH",
-    "FORMS",
-    "MonotoneFitter",
-    "MonotoneSystem",
-    "RationalCDF",
-    "beckmann_cos_cdf",
-    "beckmann_cos_pdf",
-    "cdf_from_bounds",
-    "cdf_from_pdf",
-    "cdf_from_samples",
-    "cdf_from_table",
-    "cdf_segments",
-    "dkw_epsilon",
-    "fit_cdf",
-    "fit_cdf_2d",
-    "ggx_theta_cdf",
-    "ggx_theta_pdf",
-    "ks_statistic",
-    "monotone_envelope",
-    "rational_derivative",
-    "verify_cdf",
-]
+__all__ = [*_monotone.__all__, *_sampling.__all__]

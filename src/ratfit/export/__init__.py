@@ -1,20 +1,6 @@
-"""Standalone source (C, GLSL, Python) that evaluates a saved fit.
-"""
+"""Standalone source (C, GLSL, Python) that evaluates a saved fit."""
 
-from ratfit.export.code import (
-    LANGS,
-    ChannelForm,
-    ExportResult,
-    export_fit,
-    export_source,
-    plan_forms,
-)
+from ratfit.export import code as _code
+from ratfit.export.code import *  # noqa: F403  (the public names, listed once, there)
 
-__all__ = [
-    "ChannelForm",
-    "ExportResult",
-    "LANGS",
-    "export_fit",
-    "export_source",
-    "plan_forms",
-]
+__all__ = list(_code.__all__)
