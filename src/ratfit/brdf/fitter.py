@@ -29,7 +29,7 @@ from ratfit.core.bases import PolynomialSpace
 from ratfit.core.qp import ArnoldiSystem
 from ratfit.core.rational import RationalFunction
 from ratfit.core.segments import Segments
-from ratfit.core.systems import AppendedRows, RowSystem
+from ratfit.core.systems import AppendedRows, LazyRows, RowSystem
 from ratfit.core.validation import check_width
 from ratfit.core.verify import Verification, verify
 from ratfit.errors import FileFormatError, InputError
@@ -323,11 +323,16 @@ def _valid_rows(base: ArnoldiSystem, t_grid: Array, numerator: bool = True) -> A
     on an active set that starts from the data's rows and adds grid rows where they
     are violated (a dense grid is mostly slack; all of it in one QP is slow).
     """
-    psi = base.q_basis.design(t_grid, base.m, window=True)
-    phi = base.p_basis.design(t_grid, base.n, window=True) if numerator else None
+    def unit(basis, k: int):
+        def make() -> Array:
+            d = basis.design(t_grid, k, window=True)
+            return d / np.linalg.norm(d, axis=1)[:, None]
+        return LazyRows(make, len(t_grid))
+
+    # built when a candidate reaches the grid (an infeasible split never does)
     return AppendedRows(
-        base, base.n, base.m, psi=psi / np.linalg.norm(psi, axis=1)[:, None],
-        phi=None if phi is None else phi / np.linalg.norm(phi, axis=1)[:, None],
+        base, base.n, base.m, psi=unit(base.q_basis, base.m),
+        phi=unit(base.p_basis, base.n) if numerator else None,
         start_active=False, extra_points=len(t_grid))
 
 

@@ -143,10 +143,7 @@ def check_validity(rf: RationalFunction, param: str, domain: ArrayLike | None = 
     cols = np.arange(p.dim) if keep is None else np.asarray(keep, dtype=np.int64)
     dom = rf.space.domain if domain is None else np.asarray(domain, dtype=float)
     k = _n_angles(p)
-    a = angle_grid(k, points, offset=True)
-    c = _coords(p, a)[:, cols]
-    inside = _inside(c, dom)
-    a, c = a[inside], np.clip(c[inside], dom[:, 0], dom[:, 1])
+    a, c = _check_grid(p, dom, cols, points)
     if len(c) == 0:
         return ValidityCheck(True, 0, np.inf, np.inf, np.zeros((0, dom.shape[0])),
                              "no direction pair in the domain")
@@ -167,11 +164,12 @@ def check_validity(rf: RationalFunction, param: str, domain: ArrayLike | None = 
         checked += pts
         found.append(best)
     bad = np.concatenate(found) if found else np.zeros((0, dom.shape[0]))
+    qa, pa = q, pv  # the grid's values, plus those of the bad points found
     if len(bad):
         qb, pb = sign * rf.denominator(bad), sign * rf.numerator(bad)
-        bad = bad[(qb <= 0) | (pb < 0) | ~np.isfinite(qb) | ~np.isfinite(pb)]
-    allc = np.concatenate([c, bad]) if len(bad) else c
-    qa, pa = sign * rf.denominator(allc), sign * rf.numerator(allc)
+        keep_b = (qb <= 0) | (pb < 0) | ~np.isfinite(qb) | ~np.isfinite(pb)
+        bad, qb, pb = bad[keep_b], qb[keep_b], pb[keep_b]
+        qa, pa = np.concatenate([q, qb]), np.concatenate([pv, pb])
     with np.errstate(divide="ignore", invalid="ignore"):
         ra = pa / qa
     min_q = float(np.min(qa) / qs)
@@ -179,6 +177,26 @@ def check_validity(rf: RationalFunction, param: str, domain: ArrayLike | None = 
     valid = len(bad) == 0 and min_q > 0 and min_r >= 0 and bool(np.all(np.isfinite(qa)))
     return ValidityCheck(valid, checked, min_q, min_r, bad,
                          f"offset grid of {len(c)} + compass search from {2 * starts} minima")
+
+
+_GRIDS: dict[tuple, tuple[Array, Array]] = {}
+
+
+def _check_grid(p: Parametrization, dom: Array, cols: Array,
+                points: int) -> tuple[Array, Array]:
+    """The offset grid (angles, coordinates) inside ``dom``; kept for the next
+    candidate of the same fit (a search verifies many on one domain)."""
+    key = (p.name, dom.tobytes(), cols.tobytes(), int(points))
+    hit = _GRIDS.get(key)
+    if hit is None:
+        a = angle_grid(_n_angles(p), points, offset=True)
+        c = _coords(p, a)[:, cols]
+        inside = _inside(c, dom)
+        hit = (a[inside], np.clip(c[inside], dom[:, 0], dom[:, 1]))
+        if len(_GRIDS) >= 8:
+            _GRIDS.clear()
+        _GRIDS[key] = hit
+    return hit
 
 
 def _compass(rf: RationalFunction, p: Parametrization, dom: Array, a0: Array, v0: Array,

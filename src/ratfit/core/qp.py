@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import threading
 import time
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -26,6 +26,7 @@ from ratfit.core.rational import RationalFunction
 from ratfit.core.segments import Segments
 from ratfit.core.solvers import solve_qp
 from ratfit.core.systems import PositiveDenominator, RowSystem, denominator_cuts
+from ratfit.errors import InputError
 
 __all__ = [
     "ArnoldiSystem", "Attempt", "ConstraintSystem", "CROSS_CHECKS", "sk_denominator", "solve_fixed",
@@ -37,6 +38,9 @@ CROSS_CHECKS = ("orth", "lp", "none")
 
 # Rows are written to the QR in chunks of this many points (bounded memory).
 _CHUNK = 32_768
+# Large data (more than 4x this many points): Arnoldi bases built on this many
+# points spread over the data (see ArnoldiSystem).
+BASIS_POINTS = 16_384
 
 
 class ChannelPoints:
@@ -191,6 +195,7 @@ class Attempt:
     pole_cuts: int = 0  # q > 0 rows generated (0: the plain QP's solution was pole-free)
     seconds: float = 0.0
     messages: list[str] = field(default_factory=list)
+    active_rows: NDArray[np.int64] | None = field(default=None, repr=False)
 
     @property
     def total(self) -> int:
@@ -216,8 +221,16 @@ def solve_fixed(
     cross_check: str = "orth",
     active_set: bool | None = None,
     max_rounds: int = 100,
+    warm_rows: NDArray[np.int64] | None = None,
 ) -> Attempt:
-    """Solve P(n, m) on ``system``; the returned c satisfies every row of A > 0."""
+    """Solve P(n, m) on ``system``; the returned c satisfies every row of A > 0.
+
+    ``warm_rows``: rows to start the active set with besides the spread ones
+    (the rows another split ended with: the binding rows move little from one
+    split to the next). Any start gives the same answer; a good one saves rounds.
+    Systems with a ``screen`` method (large data) are checked on a cheap subset
+    of rows before each full pass over every row.
+    """
     t0 = time.perf_counter()
     system.prepare(n, m)
     delta, smin, smax = system.conditioning(n, m)
@@ -229,12 +242,15 @@ def solve_fixed(
     idx = system.initial_rows(max(4 * k, 64)) if active_set else np.arange(nrows)
     in_set = np.zeros(nrows, dtype=bool)
     in_set[idx] = True
+    if active_set and warm_rows is not None and warm_rows.size:
+        in_set[warm_rows[(warm_rows >= 0) & (warm_rows < nrows)]] = True
     idx = np.flatnonzero(in_set)
-    norms_all = system.row_norms(n, m)
+    screen = getattr(system, "screen", None) if active_set else None
+    norms_all: Array | None = None
     batch = max(64, 4 * k)
     for _ in range(max_rounds):
         A = system.rows(n, m, idx)
-        b = delta * norms_all[idx]
+        b = delta * np.linalg.norm(A, axis=1)  # = row_norms at idx, without a full pass
         sol = solve_qp(A, b, solver)
         att.qp_solves += 1
         att.solver_status = sol.status
@@ -272,10 +288,27 @@ def solve_fixed(
                 att.messages.append("solver reported infeasible; not cross-checked")
             if sol.status == "optimal":
                 att.raw_c = sol.x  # kept so the failure can be verified and shown
-            att.active_set_size = int(idx.size)
             break
+        if screen is not None:
+            # Cheap stages of rows first (a subset of the data, then a grid of extra
+            # rows): the full pass only once every stage is met.
+            missed = False
+            for ridx, res_s, nrm_s in screen(n, m, c):
+                need = ~(res_s >= (1.0 - 1e-6) * delta * nrm_s)
+                miss = need & ~in_set[ridx]
+                if miss.any():
+                    bad = ridx[miss]
+                    scaled = np.nan_to_num(res_s[miss] / nrm_s[miss], nan=-np.inf)
+                    in_set[bad[np.argsort(scaled)[:batch]]] = True
+                    idx = np.flatnonzero(in_set)
+                    missed = True
+                    break
+            if missed:
+                continue
         # One full pass over every row.
         res = system.residuals(n, m, c)
+        if norms_all is None:
+            norms_all = system.row_norms(n, m)
         need = ~(res >= (1.0 - 1e-6) * delta * norms_all)  # NaN counts as needed
         bad = np.flatnonzero(need & ~in_set)
         if bad.size == 0:
@@ -284,14 +317,16 @@ def solve_fixed(
             else:
                 att.status = "failed"
                 att.messages.append("solution violates rows of its own active set")
-            att.active_set_size = int(idx.size)
             break
         scaled = np.nan_to_num(res[bad] / norms_all[bad], nan=-np.inf)
         in_set[bad[np.argsort(scaled)[:batch]]] = True
         idx = np.flatnonzero(in_set)
     else:
         att.messages.append(f"active set did not converge in {max_rounds} rounds")
-        att.active_set_size = int(idx.size)
+    att.active_set_size = int(idx.size)
+    if att.c is not None:
+        # the rows binding at the solution (within 10x the margin): a next split's start
+        att.active_rows = idx[res[idx] <= 10.0 * delta * norms_all[idx]]
     att.seconds = time.perf_counter() - t0
     return att
 
@@ -460,28 +495,61 @@ class ArnoldiSystem:
         self.n, self.m = n, m
         self.scale = segment_scales(self.lo, self.hi)
         self.v = denominator_weights(q0, self.n_points)
-        from ratfit.core.arnoldi import ArnoldiBasis
-
-        self.p_basis, self.U = ArnoldiBasis.build(space, self.t, self.v / self.scale, n)
-        self.q_basis, self.V = ArnoldiBasis.build(space, self.t, self.v, m)
         self.lo_s = self.lo / self.scale
         self.hi_s = self.hi / self.scale
+        self._wp = self.v / self.scale
+        from ratfit.core.arnoldi import ArnoldiBasis
+
+        # Large data: the bases are made orthonormal on a spread subset S of the
+        # points (the same polynomial spaces, so the feasible set is unchanged) and
+        # rows elsewhere are evaluated on demand. A split decided on rows of S
+        # (every infeasible one) then never touches all N points; a candidate is
+        # screened on S first and checked on every row once S is met.
+        self.sub: NDArray[np.int64] | None = None
+        if self.n_points > 4 * BASIS_POINTS:
+            sub = self.points.spread_subset(BASIS_POINTS)
+            try:
+                self.p_basis, U = ArnoldiBasis.build(space, self.t[sub], self._wp[sub], n)
+                self.q_basis, V = ArnoldiBasis.build(space, self.t[sub], self.v[sub], m)
+                self.sub = sub
+            except InputError:  # S cannot carry the split's functions: all points can
+                self.sub = None
+        if self.sub is None:
+            self.p_basis, U = ArnoldiBasis.build(space, self.t, self._wp, n)
+            self.q_basis, V = ArnoldiBasis.build(space, self.t, self.v, m)
+        self._U, self._V = U, V  # orthonormal columns on S (or on every point)
         self._cond = self._conditioning()
-        self._norms = np.sqrt(np.concatenate([
-            np.sum(self.U**2, 1) + self.lo_s**2 * np.sum(self.V**2, 1),
-            np.sum(self.U**2, 1) + self.hi_s**2 * np.sum(self.V**2, 1),
-        ]))
+        self._norms: Array | None = None
+
+    @property
+    def U(self) -> Array:
+        """p's weighted basis at every point (computed on demand for large data)."""
+        return self._U if self.sub is None else self._design(np.arange(self.n_points))[0]
+
+    @property
+    def V(self) -> Array:
+        return self._V if self.sub is None else self._design(np.arange(self.n_points))[1]
+
+    def _design(self, pts: NDArray[np.int64]) -> tuple[Array, Array]:
+        if self.sub is None:
+            return self._U[pts], self._V[pts]
+        t = self.t[pts]
+        return (self._wp[pts, None] * self.p_basis.design(t, self.n, window=True),
+                self.v[pts, None] * self.q_basis.design(t, self.m, window=True))
 
     def _conditioning(self) -> tuple[float, float, float]:
-        """(delta, sigma_min, sigma_max) of A from its Gram matrix, which with
-        orthonormal U, V is cheap for any number of points; a Gram matrix only
-        resolves sigma_min / sigma_max above ~1e-7, so a chunked QR takes over
-        below that."""
-        U, V = self.U, self.V
-        cross = -U.T @ ((self.lo_s + self.hi_s)[:, None] * V)
+        """(delta, sigma_min, sigma_max) of A (on S for large data) from its Gram
+        matrix, which with orthonormal U, V is cheap for any number of points; a
+        Gram matrix only resolves sigma_min / sigma_max above ~1e-7, so a chunked
+        QR takes over below that. delta only scales the QP's margins (the feasible
+        cone does not depend on it)."""
+        U, V = self._U, self._V
+        pts = np.arange(self.n_points) if self.sub is None else self.sub
+        lo_s, hi_s = self.lo_s[pts], self.hi_s[pts]
+        cross = -U.T @ ((lo_s + hi_s)[:, None] * V)
         G = np.block([
             [2.0 * np.eye(U.shape[1]), cross],
-            [cross.T, V.T @ ((self.lo_s**2 + self.hi_s**2)[:, None] * V)],
+            [cross.T, V.T @ ((lo_s**2 + hi_s**2)[:, None] * V)],
         ])
         ev = np.linalg.eigvalsh(G)
         smax = float(np.sqrt(max(ev[-1], 0.0)))
@@ -489,12 +557,14 @@ class ArnoldiSystem:
         if smax > 0 and smin > 1e-6 * smax:
             return smin / smax, smin, smax
         acc = None
-        for start in range(0, self.n_points, _CHUNK):
-            rid = np.arange(start, min(start + _CHUNK, self.n_points))
-            block = self.rows(self.n, self.m, np.concatenate([rid, self.n_points + rid]))
+        for start in range(0, pts.size, _CHUNK):
+            sl = slice(start, start + _CHUNK)
+            u, v = U[sl], V[sl]
+            block = np.vstack([np.hstack([u, -lo_s[sl, None] * v]),
+                               np.hstack([-u, hi_s[sl, None] * v])])
             acc = np.linalg.qr(block if acc is None else np.vstack([acc, block]), mode="r")
         sv = np.linalg.svd(acc, compute_uv=False)
-        return _delta_from(sv, (self.n_rows, acc.shape[1]))
+        return _delta_from(sv, (2 * pts.size, acc.shape[1]))
 
     def _check(self, n: int, m: int) -> None:
         if (n, m) != (self.n, self.m):
@@ -524,17 +594,57 @@ class ArnoldiSystem:
         first = ridx < self.n_points
         sign = np.where(first, 1.0, -1.0)[:, None]
         w = np.where(first, -self.lo_s[pts], self.hi_s[pts])[:, None]
-        return np.hstack([sign * self.U[pts], w * self.V[pts]])
+        U, V = self._design(pts)
+        return np.hstack([sign * U, w * V])
+
+    def _pq(self, c: Array) -> tuple[Array, Array, Array, Array]:
+        """Weighted p, q and the squared row norms of both parts at every point
+        (in chunks of points for large data: no N x k matrix is kept)."""
+        if self.sub is None:
+            U, V = self._U, self._V
+            return U @ c[:self.n], V @ c[self.n:], np.sum(U**2, 1), np.sum(V**2, 1)
+        out = [np.empty(self.n_points) for _ in range(4)]
+        for start in range(0, self.n_points, _CHUNK):
+            pts = np.arange(start, min(start + _CHUNK, self.n_points))
+            U, V = self._design(pts)
+            out[0][pts], out[1][pts] = U @ c[:self.n], V @ c[self.n:]
+            out[2][pts], out[3][pts] = np.sum(U**2, 1), np.sum(V**2, 1)
+        return out[0], out[1], out[2], out[3]
+
+    def _set_norms(self, uu: Array, vv: Array) -> None:
+        if self._norms is None:
+            self._norms = np.sqrt(np.concatenate([uu + self.lo_s**2 * vv,
+                                                  uu + self.hi_s**2 * vv]))
 
     def row_norms(self, n: int, m: int) -> Array:
         self._check(n, m)
+        if self._norms is None:
+            _, _, uu, vv = self._pq(np.zeros(self.n + self.m))
+            self._set_norms(uu, vv)
+        assert self._norms is not None
         return self._norms
 
     def residuals(self, n: int, m: int, c: Array) -> Array:
         self._check(n, m)
-        p = self.U @ c[:n]
-        q = self.V @ c[n:]
+        p, q, uu, vv = self._pq(c)
+        self._set_norms(uu, vv)
         return np.concatenate([p - self.lo_s * q, self.hi_s * q - p])
+
+    def screen(self, n: int, m: int, c: Array) -> Iterator[tuple[NDArray[np.int64], Array, Array]]:
+        """Stages of (rows, residuals, norms) to check before a full pass: the rows
+        of S for large data; none when the bases live on every point (the full pass
+        is then as cheap)."""
+        self._check(n, m)
+        if self.sub is None:
+            return
+        U, V = self._U, self._V
+        p, q = U @ c[:n], V @ c[n:]
+        uu, vv = np.sum(U**2, 1), np.sum(V**2, 1)
+        lo, hi = self.lo_s[self.sub], self.hi_s[self.sub]
+        ridx = np.concatenate([self.sub, self.n_points + self.sub])
+        res = np.concatenate([p - lo * q, hi * q - p])
+        nrm = np.sqrt(np.concatenate([uu + lo**2 * vv, uu + hi**2 * vv]))
+        yield ridx, res, nrm
 
     def to_rational(self, n: int, m: int, c: Array) -> RationalFunction:
         self._check(n, m)

@@ -18,6 +18,7 @@ augmented feasible set contains every pole-free one) is constraint generation.
 
 from __future__ import annotations
 
+from collections.abc import Iterator
 from typing import Protocol, runtime_checkable
 
 import numpy as np
@@ -26,7 +27,8 @@ from numpy.typing import NDArray
 from ratfit.core.bases import PolynomialSpace
 from ratfit.core.rational import RationalFunction
 
-__all__ = ["PositiveDenominator", "RowSystem", "denominator_cuts", "domain_grid"]
+__all__ = ["AppendedRows", "LazyRows", "PositiveDenominator", "RowSystem", "denominator_cuts",
+           "domain_grid"]
 
 Array = NDArray[np.float64]
 
@@ -74,6 +76,22 @@ class RowSystem(Protocol):
         ...
 
 
+class LazyRows:
+    """``count`` rows (unit norm) that ``make()`` computes when first needed."""
+
+    def __init__(self, make, count: int) -> None:
+        self.make, self.count = make, int(count)
+
+    def __len__(self) -> int:
+        return self.count
+
+    def build(self) -> Array:
+        out = self.make()
+        if out.shape[0] != self.count:
+            raise ValueError(f"lazy rows: expected {self.count}, got {out.shape[0]}")
+        return out
+
+
 class AppendedRows:
     """``base`` plus unit rows on one coefficient block each: ``q(z) / ||psi(z)|| >= delta``
     (rows of ``psi``, acting on c[n:]) and ``p(z) / ||phi(z)|| >= delta`` (``phi``, on c[:n]).
@@ -86,8 +104,8 @@ class AppendedRows:
     ``solve_fixed`` work on an active set rather than on every row at once.
     """
 
-    def __init__(self, base: RowSystem, n: int, m: int, psi: Array | None = None,
-                 phi: Array | None = None, *, start_active: bool = True,
+    def __init__(self, base: RowSystem, n: int, m: int, psi: Array | LazyRows | None = None,
+                 phi: Array | LazyRows | None = None, *, start_active: bool = True,
                  extra_points: int = 0) -> None:
         self.base = base
         self.n, self.m = int(n), int(m)
@@ -98,9 +116,34 @@ class AppendedRows:
         self.phi = np.zeros((0, self.n)) if phi is None else phi
         self.start_active = start_active
 
+    # psi and phi may be LazyRows: built on first use (a split decided on the data's
+    # rows alone, as every infeasible one is, never evaluates a large grid)
+    @property
+    def psi(self) -> Array:
+        if isinstance(self._psi, LazyRows):
+            self._psi = self._psi.build()
+        return self._psi
+
+    @psi.setter
+    def psi(self, value: Array | LazyRows) -> None:
+        self._psi = value
+
+    @property
+    def phi(self) -> Array:
+        if isinstance(self._phi, LazyRows):
+            self._phi = self._phi.build()
+        return self._phi
+
+    @phi.setter
+    def phi(self, value: Array | LazyRows) -> None:
+        self._phi = value
+
+    def _counts(self) -> tuple[int, int]:
+        return len(self._psi), len(self._phi)
+
     @property
     def n_rows(self) -> int:
-        return self.base.n_rows + self.psi.shape[0] + self.phi.shape[0]
+        return self.base.n_rows + sum(self._counts())
 
     def prepare(self, n_max: int, m_max: int) -> None:
         self.base.prepare(n_max, m_max)
@@ -109,7 +152,7 @@ class AppendedRows:
         return self.base.conditioning(n, m)
 
     def rows(self, n: int, m: int, ridx: NDArray[np.int64] | None = None) -> Array:
-        nb, nq = self.base.n_rows, self.psi.shape[0]
+        nb, nq = self.base.n_rows, self._counts()[0]
         if ridx is None:
             ridx = np.arange(self.n_rows)
         out = np.zeros((ridx.size, n + m))
@@ -117,18 +160,37 @@ class AppendedRows:
         if data.any():
             out[data] = self.base.rows(n, m, ridx[data])
         qrow = (ridx >= nb) & (ridx < nb + nq)
-        out[qrow, n:] = self.psi[ridx[qrow] - nb]
+        if qrow.any():
+            out[qrow, n:] = self.psi[ridx[qrow] - nb]
         prow = ridx >= nb + nq
-        out[prow, :n] = self.phi[ridx[prow] - nb - nq]
+        if prow.any():
+            out[prow, :n] = self.phi[ridx[prow] - nb - nq]
         return out
 
     def row_norms(self, n: int, m: int) -> Array:
-        return np.concatenate([self.base.row_norms(n, m),
-                               np.ones(self.psi.shape[0] + self.phi.shape[0])])
+        return np.concatenate([self.base.row_norms(n, m), np.ones(sum(self._counts()))])
 
     def residuals(self, n: int, m: int, c: Array) -> Array:
         return np.concatenate([self.base.residuals(n, m, c), self.psi @ c[n:],
                                self.phi @ c[:n]])
+
+    def screen(self, n: int, m: int, c: Array) -> Iterator[tuple[NDArray[np.int64], Array, Array]]:
+        """Stages of rows to check before a full pass (see solve_fixed): the base's
+        (its cheap subset; for a base without one, all its rows), then the appended
+        rows, which a candidate meets only once it meets the data."""
+        scr = getattr(self.base, "screen", None)
+        staged = False
+        if scr is not None:
+            for stage in scr(n, m, c):
+                staged = True
+                yield stage
+        if not staged:
+            nb = self.base.n_rows
+            yield np.arange(nb), self.base.residuals(n, m, c), self.base.row_norms(n, m)
+        nb, extra = self.base.n_rows, sum(self._counts())
+        if extra:
+            yield (nb + np.arange(extra), np.concatenate([self.psi @ c[n:], self.phi @ c[:n]]),
+                   np.ones(extra))
 
     def initial_rows(self, size: int) -> NDArray[np.int64]:
         first = self.base.initial_rows(size)

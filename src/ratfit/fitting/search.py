@@ -168,6 +168,12 @@ class RationalFitter(Estimator):
     (True, 0.0)
     """
 
+    #: Warm starts (active sets carried across splits, the next channel's search
+    #: started at the previous channel's total). Only the speed depends on it;
+    #: the benchmarks and tests switch it off to compare.
+    _warm_start: bool = True
+    _hint: int | None = None
+
     def __init__(
         self,
         *,
@@ -312,6 +318,7 @@ class RationalFitter(Estimator):
         factors = value_scales(segments)
         work = scale_segments(segments, factors)
         log_space = self._log_space(space, segments)
+        self._hint: int | None = None
         results = [self._fit_either(space, log_space, work, j)
                    for j in range(segments.n_channels)]
         verifier = self._search_parts(space, segments).verifier
@@ -380,11 +387,14 @@ class RationalFitter(Estimator):
                 best = run.all_splits(lo_t)
             else:
                 best = run.exhaustive(lo_t, hi_t) if self.strategy == "exhaustive" else (
-                    run.staircase(lo_t, hi_t)
+                    run.staircase(lo_t, hi_t, start=self._hint if self._warm_start else None)
                 )
         except _OutOfTime:
             return run.timed_out(lo_t, hi_t, time.perf_counter() - t0)
-        return run.result(best, lo_t, hi_t, time.perf_counter() - t0)
+        res = run.result(best, lo_t, hi_t, time.perf_counter() - t0)
+        if res.success:
+            self._hint = res.n + res.m  # the next channel's search starts there
+        return res
 
 
 class SystemFactory(Protocol):
@@ -507,6 +517,7 @@ class SearchEngine:
         self.system = self.parts.systems.channel(space, seg, j)
         self.cache: dict[tuple[int, int], Candidate] = {}
         self.second_opinion = False
+        self.warm: NDArray[np.int64] | None = None
         self.infeasible: list[tuple[int, int]] = []
         self.jobs = int(fitter.jobs or os.cpu_count() or 1)
         self.active_set = fitter._resolved_active_set()
@@ -527,10 +538,15 @@ class SearchEngine:
                                         like=self.system)
 
     def _solve(self, system: RowSystem, n: int, m: int, form: str) -> Candidate:
+        warm = self.warm if self.f._warm_start else None
         att, system = solve_pole_free(
             system, n, m, cuts=self.cuts, solver=self.f.solver,
-            cross_check=self.f.cross_check, active_set=self.active_set,
+            cross_check=self.f.cross_check, active_set=self.active_set, warm_rows=warm,
         )
+        if att.active_rows is not None:
+            # the data rows binding at this split's solution start the next split's
+            rows = att.active_rows
+            self.warm = rows[rows < 2 * self.seg.n_points]
         att.formulation = form
         rf = ver = None
         c = att.c if att.c is not None else att.raw_c
@@ -647,23 +663,67 @@ class SearchEngine:
                 return self._choose(good)
         return []
 
-    def staircase(self, lo: int, hi: int) -> list[tuple[int, int]]:
-        best: tuple[int, int] | None = None
-        # 1. balanced probe, `jobs` totals at a time.
-        total = lo
-        while best is None and total <= hi:
+    def _bracket(self, lo: int, hi: int, start: int | None) -> tuple[int, int] | None:
+        """A feasible split near the minimal total, from balanced splits: galloping
+        totals start, start + 1, start + 3, start + 7, ... (start: a hint such as the
+        previous channel's total, else lo) up to the first feasible one, then
+        bisection between it and the largest infeasible one. Feasibility of the
+        balanced split grows with the total, so this takes O(log) tests where a
+        walk up from lo took one per total. Where it lands only sets how much the
+        staircase walk below it has to do: the walk proves the total minimal.
+        """
+        t0 = lo if start is None else min(max(int(start), lo), hi)
+        below, above = lo - 1, None  # largest balanced total that failed, smallest that fit
+        poly: tuple[int, int] | None = None
+        step = 1
+        total = t0
+        while above is None and total <= hi:
             width = self._batch_width()
-            probes = [_balanced(t) for t in range(total, min(hi, total + width - 1) + 1)]
-            if total + len(probes) - 1 >= self.cap + 1 and self.cap + 1 >= lo:
+            probes, t, st = [], total, step
+            while len(probes) < width and t <= hi:
+                probes.append(_balanced(t))
+                # the last total hi is always tested: no jump past the range
+                t, st = (min(t + st, hi) if t < hi else hi + 1), 2 * st
+            extra = []
+            if poly is None and sum(probes[-1]) >= self.cap + 1 >= lo:
                 # A polynomial through every point (q constant: no pole) always fits;
                 # it bounds the answer when balanced splits keep finding poles.
-                probes.append((self.cap, 1))
-            self.test_many(probes)
-            for s in probes:
-                if self.ok(s):
-                    best = s
+                extra = [(self.cap, 1)]
+            self.test_many(probes + extra)
+            for p in probes:
+                if self.ok(p):
+                    above = sum(p)
                     break
-            total += len(probes)
+                below = max(below, sum(p))
+            if extra and self.ok(extra[0]):
+                poly = extra[0]
+            if above is None and poly is not None:
+                return poly
+            total, step = t, st
+        if above is None:
+            # Nothing fitted up to hi. Only a proved infeasibility rules out the totals
+            # below it: a numerical failure at a large total says nothing about smaller
+            # ones, so every balanced total above the largest proved one is tested.
+            proved = max((sum(s) for s in self.infeasible
+                          if s == _balanced(sum(s))), default=lo - 1)
+            for t in range(max(proved + 1, lo), hi + 1):
+                if self.ok(_balanced(t)):
+                    return _balanced(t)
+            return poly
+        while above - below > 1:  # bisection, `width` totals at a time
+            width = min(self._batch_width(), above - below - 1)
+            mids = sorted({below + (above - below) * (i + 1) // (width + 1)
+                           for i in range(width)} - {below, above})
+            self.test_many([_balanced(t) for t in mids])
+            for t in mids:
+                if self.ok(_balanced(t)):
+                    above = t
+                    break
+                below = t
+        return _balanced(above)
+
+    def staircase(self, lo: int, hi: int, start: int | None = None) -> list[tuple[int, int]]:
+        best = self._bracket(lo, hi, start)
         if best is None:
             return []
         # 2. staircase walk below the best total.
