@@ -39,3 +39,35 @@ def test_warm_start_and_subset_bases_give_the_cold_answer(shared_data: Path,
     r = w.rational(seg.x)
     assert np.all((seg.lo[:, 0] <= r) & (r <= seg.hi[:, 0]))
     assert w.verification.n_points == 800 and w.verification.max_violation == 0.0
+
+
+def test_subset_fit_says_so_in_its_status(shared_data: Path) -> None:
+    """--max-points: the status is "verified on a subset of K of N samples", never
+    plain "verified", in the table, the result's message and the JSON."""
+    import json
+
+    from conftest import run_cli
+
+    path = shared_data / "alta" / "data-example-01.exr"
+    if not path.exists():
+        pytest.skip(f"{path} not found")
+    args = ["brdf", "fit", path, "--dt", "0.22", "--channel", "B", "--max-points", "300"]
+    res = run_cli(*args, "--json")
+    assert res.exit_code == 0, res.output
+    doc = json.loads(res.stdout)
+    want = "verified on a subset of 300 of 262144 samples only"
+    assert doc["status"].startswith(want)
+    assert doc["subset"] == {"points": 300, "of": 262144}
+    assert doc["n_points"] == 300
+    assert doc["channels"][0]["message"].startswith(want)
+    assert "not checked at the other 261844" in doc["channels"][0]["message"]
+    text = run_cli(*args)
+    assert text.exit_code == 0, text.output
+    row = next(ln for ln in text.stdout.splitlines() if ln.strip().startswith("B "))
+    assert " subset " in row and " yes " not in row
+    assert f"status: {want}" in text.stdout
+    # the library's result says it too
+    ds = _exr(shared_data, 300)
+    fitter, _, meta = fit_brdf(ds, dt=0.22)
+    assert fitter.results_[0].message.startswith("verified on a subset of 300 of 262144")
+    assert meta["verified_on"] == "a random subset of 300 of 262144 samples"

@@ -38,7 +38,8 @@ from ratfit.io.data import Dataset
 from ratfit.io.fitfile import SavedFit, fit_document, load_fit, save_fit
 
 __all__ = ["BRDFFit", "BRDFFitter", "brdf_metrics", "brdf_segments", "cos_theta_l", "fit_brdf",
-           "load_brdf_fit", "nonnegative_segments", "prepare_values", "save_brdf_fit", "valid_grid"]
+           "load_brdf_fit", "nonnegative_segments", "prepare_values", "save_brdf_fit",
+           "subset_status", "valid_grid"]
 
 Array = NDArray[np.float64]
 _NEEDS_THETA_L = ("full", "isotropic", "tv_tl")
@@ -132,6 +133,12 @@ def fit_brdf(ds: Dataset, *, dt: float | None = None, abs_width: float | None = 
                         positive_q=bool(positive_q), **fitter_params)
     fitter._keep = None if not dropped.size else keep
     fitter.fit(seg)
+    sub = ds.meta.get("subset")
+    if sub:
+        # a subset fit is verified on that subset only: its status says so
+        note = subset_status(int(sub["points"]), int(sub["of"]))
+        fitter.results_ = [replace(r, message=note) if r.success else r
+                           for r in fitter.results_]
     meta = {
         "parametrization": str(ds.meta.get("param_in", "UNKNOWN")),
         "cosine_weighted": bool(cosine),
@@ -150,6 +157,12 @@ def fit_brdf(ds: Dataset, *, dt: float | None = None, abs_width: float | None = 
         "validity": [None if v is None else v.summary() for v in fitter.validity_],
     }
     return fitter, seg, meta
+
+
+def subset_status(points: int, of: int) -> str:
+    """The status of a fit verified on ``points`` of the ``of`` samples only."""
+    return (f"verified on a subset of {points} of {of} samples only (--max-points); "
+            f"not checked at the other {of - points}")
 
 
 def nonnegative_segments(seg: Segments) -> Segments:

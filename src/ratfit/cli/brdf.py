@@ -65,7 +65,13 @@ def brdf_fit(input_path: Path, output: Path | None, fmt: str | None, param: str 
              clamp: float | None, positive_q: bool, channels: tuple[str, ...], color: str,
              max_points: int | None, as_json: bool, **options: Any) -> None:
     """Fit each channel of a measured BRDF with a verified rational function."""
-    from ratfit.brdf.fitter import brdf_metrics, cos_theta_l, fit_brdf, save_brdf_fit
+    from ratfit.brdf.fitter import (
+        brdf_metrics,
+        cos_theta_l,
+        fit_brdf,
+        save_brdf_fit,
+        subset_status,
+    )
     from ratfit.brdf.io import brdf_dataset
     from ratfit.brdf.parametrizations import get_parametrization
     from ratfit.io.fitfile import file_sha256
@@ -118,17 +124,24 @@ def brdf_fit(input_path: Path, output: Path | None, fmt: str | None, param: str 
             "n_points": seg.n_points, "solver": params["solver"],
             "segments": {"dt": dt, "abs_width": abs_width, "floor_rel": floor_rel},
         })
+    subset = ds.meta.get("subset")
     if as_json:
         doc = _fit_json(results, output if ok else None)
         doc["parametrization"] = meta["parametrization"]
         doc["n_points"] = seg.n_points
+        doc["verified_on"] = meta["verified_on"]
+        if subset:
+            doc["subset"] = dict(subset)
+            doc["status"] = subset_status(subset["points"], subset["of"]) if ok else (
+                "no verified fit")
         doc["metrics"] = metrics
         _write_json(doc)
     else:
-        _print_report(results, output if ok and output else None)
-        click.echo(f"parametrization {meta['parametrization']}, {seg.n_points} samples"
-                   + (f"; verified on {meta['verified_on']} only (--max-points)"
-                      if ds.meta.get("subset") else ""))
+        _print_report(results, output if ok and output else None,
+                      verified_as="subset" if subset else None)
+        click.echo(f"parametrization {meta['parametrization']}, {seg.n_points} samples")
+        if subset and ok:
+            click.echo("status: " + subset_status(subset["points"], subset["of"]))
         if meta.get("dropped_coords"):
             click.echo("constant coordinates dropped (recorded in the fit): "
                        + ", ".join(f"#{k} = {v:.6g}" for k, v in meta["dropped_coords"].items()))

@@ -301,6 +301,7 @@ def solve_fixed(
                     scaled = np.nan_to_num(res_s[miss] / nrm_s[miss], nan=-np.inf)
                     in_set[bad[np.argsort(scaled)[:batch]]] = True
                     idx = np.flatnonzero(in_set)
+                    batch = int(1.5 * batch)  # many rounds: take more rows each time
                     missed = True
                     break
             if missed:
@@ -321,6 +322,7 @@ def solve_fixed(
         scaled = np.nan_to_num(res[bad] / norms_all[bad], nan=-np.inf)
         in_set[bad[np.argsort(scaled)[:batch]]] = True
         idx = np.flatnonzero(in_set)
+        batch = int(1.5 * batch)
     else:
         att.messages.append(f"active set did not converge in {max_rounds} rounds")
     att.active_set_size = int(idx.size)
@@ -494,10 +496,31 @@ class ArnoldiSystem:
         self._order = self.points.order
         self.n, self.m = n, m
         self.scale = segment_scales(self.lo, self.hi)
-        self.v = denominator_weights(q0, self.n_points)
         self.lo_s = self.lo / self.scale
         self.hi_s = self.hi / self.scale
-        self._wp = self.v / self.scale
+        large = self.n_points > 4 * BASIS_POINTS
+        sub = self.points.spread_subset(BASIS_POINTS) if large else None
+        self._v: Array | None = None
+        self._q0 = None
+        if callable(q0):
+            at = self.t if sub is None else self.t[sub]
+            with np.errstate(all="ignore"):
+                qs = q0(at)
+            if np.all(np.isfinite(qs)) and np.any(qs):
+                # v = 1 / |q0| floored at 1e-14 max |q0|, scaled by its max (both on
+                # the points the guess was first evaluated on; any positive v keeps
+                # the feasible set)
+                floor = 1e-14 * float(np.max(np.abs(qs)))
+                vmax = float(np.max(1.0 / np.maximum(np.abs(qs), floor)))
+                self._q0 = (q0, floor, vmax)
+                if sub is None:
+                    self._v = self._weights(qs)
+            else:
+                q0 = None
+            if q0 is None:
+                self._v = np.ones(self.n_points)
+        else:
+            self._v = denominator_weights(q0, self.n_points)
         from ratfit.core.arnoldi import ArnoldiBasis
 
         # Large data: the bases are made orthonormal on a spread subset S of the
@@ -506,20 +529,45 @@ class ArnoldiSystem:
         # (every infeasible one) then never touches all N points; a candidate is
         # screened on S first and checked on every row once S is met.
         self.sub: NDArray[np.int64] | None = None
-        if self.n_points > 4 * BASIS_POINTS:
-            sub = self.points.spread_subset(BASIS_POINTS)
+        if sub is not None:
+            vs = self._v_at(sub)
             try:
-                self.p_basis, U = ArnoldiBasis.build(space, self.t[sub], self._wp[sub], n)
-                self.q_basis, V = ArnoldiBasis.build(space, self.t[sub], self.v[sub], m)
+                self.p_basis, U = ArnoldiBasis.build(space, self.t[sub], vs / self.scale[sub], n)
+                self.q_basis, V = ArnoldiBasis.build(space, self.t[sub], vs, m)
                 self.sub = sub
             except InputError:  # S cannot carry the split's functions: all points can
                 self.sub = None
         if self.sub is None:
-            self.p_basis, U = ArnoldiBasis.build(space, self.t, self._wp, n)
-            self.q_basis, V = ArnoldiBasis.build(space, self.t, self.v, m)
+            v = self.v
+            self.p_basis, U = ArnoldiBasis.build(space, self.t, v / self.scale, n)
+            self.q_basis, V = ArnoldiBasis.build(space, self.t, v, m)
         self._U, self._V = U, V  # orthonormal columns on S (or on every point)
+        self._full: tuple[Array, Array] | None = None  # large data: U, V at every point
         self._cond = self._conditioning()
         self._norms: Array | None = None
+
+    def _weights(self, qv: Array) -> Array:
+        _, floor, vmax = self._q0  # type: ignore[misc]
+        aq = np.abs(qv)
+        aq = np.where(np.isfinite(aq), np.maximum(aq, floor), floor)
+        return (1.0 / aq) / vmax
+
+    def _v_at(self, pts: NDArray[np.int64]) -> Array:
+        if self._v is not None:
+            return self._v[pts]
+        with np.errstate(all="ignore"):
+            return self._weights(self._q0[0](self.t[pts]))  # type: ignore[index]
+
+    @property
+    def v(self) -> Array:
+        """Row weights 1 / |q0| at every point (computed on demand for large data)."""
+        if self._v is None:
+            v = np.empty(self.n_points)
+            for start in range(0, self.n_points, _CHUNK):
+                pts = np.arange(start, min(start + _CHUNK, self.n_points))
+                v[pts] = self._v_at(pts)
+            self._v = v
+        return self._v
 
     @property
     def U(self) -> Array:
@@ -533,9 +581,12 @@ class ArnoldiSystem:
     def _design(self, pts: NDArray[np.int64]) -> tuple[Array, Array]:
         if self.sub is None:
             return self._U[pts], self._V[pts]
+        if self._full is not None:
+            return self._full[0][pts], self._full[1][pts]
         t = self.t[pts]
-        return (self._wp[pts, None] * self.p_basis.design(t, self.n, window=True),
-                self.v[pts, None] * self.q_basis.design(t, self.m, window=True))
+        v = self._v_at(pts)
+        return ((v / self.scale[pts])[:, None] * self.p_basis.design(t, self.n, window=True),
+                v[:, None] * self.q_basis.design(t, self.m, window=True))
 
     def _conditioning(self) -> tuple[float, float, float]:
         """(delta, sigma_min, sigma_max) of A (on S for large data) from its Gram
@@ -603,13 +654,20 @@ class ArnoldiSystem:
         if self.sub is None:
             U, V = self._U, self._V
             return U @ c[:self.n], V @ c[self.n:], np.sum(U**2, 1), np.sum(V**2, 1)
-        out = [np.empty(self.n_points) for _ in range(4)]
-        for start in range(0, self.n_points, _CHUNK):
-            pts = np.arange(start, min(start + _CHUNK, self.n_points))
-            U, V = self._design(pts)
-            out[0][pts], out[1][pts] = U @ c[:self.n], V @ c[self.n:]
-            out[2][pts], out[3][pts] = np.sum(U**2, 1), np.sum(V**2, 1)
-        return out[0], out[1], out[2], out[3]
+        if self._full is None:
+            # A candidate met the rows of S: the split is worth the matrices at every
+            # point (kept for the next rounds of this split: one evaluation, not one
+            # per round).
+            U = np.empty((self.n_points, self.n))
+            V = np.empty((self.n_points, self.m))
+            for start in range(0, self.n_points, _CHUNK):
+                pts = np.arange(start, min(start + _CHUNK, self.n_points))
+                U[pts], V[pts] = self._design(pts)
+            self._full = (U, V)
+        U, V = self._full
+        if self._norms is not None:  # the squares are only needed once
+            return U @ c[:self.n], V @ c[self.n:], np.zeros(0), np.zeros(0)
+        return U @ c[:self.n], V @ c[self.n:], np.sum(U**2, 1), np.sum(V**2, 1)
 
     def _set_norms(self, uu: Array, vv: Array) -> None:
         if self._norms is None:
@@ -679,13 +737,14 @@ def segment_scales(lo: Array, hi: Array) -> Array:
 
 def sk_denominator(space: PolynomialSpace, seg: Segments, channel: int | Sequence[int],
                    n: int | Sequence[int], m: int, steps: int = 4, max_points: int = 4000,
-                   like: ConstraintSystem | None = None) -> Array | None:
+                   like: ConstraintSystem | None = None, as_function: bool = False):
     """Values at every data point of a denominator guess for (n, m), from
     re-weighted linearised least squares (Sanathanan-Koerner) on at most
     ``max_points`` points spread over the data. None if it breaks down.
 
     ``channel`` and ``n`` may be sequences: one q shared by several channels,
-    each with its own numerator size, minimising the sum of their residuals."""
+    each with its own numerator size, minimising the sum of their residuals.
+    ``as_function``: return the guess as a function of window points instead."""
     from ratfit.core.arnoldi import ArnoldiBasis
     from ratfit.errors import InputError
 
@@ -728,6 +787,9 @@ def sk_denominator(space: PolynomialSpace, seg: Segments, channel: int | Sequenc
         v = denominator_weights(qv, pick.size)
     if guess is None:
         return None
+    if as_function:  # evaluated where needed (large data: not at every point)
+        basis, coef = guess
+        return lambda pts: basis.evaluate(pts, coef, window=True)
     with np.errstate(all="ignore"):
         q_all = guess[0].evaluate(t_all, guess[1], window=True)
     return q_all if np.all(np.isfinite(q_all)) and np.any(q_all) else None

@@ -75,6 +75,7 @@ from ratfit.core.results import STATUS_MESSAGES, FitResult
 from ratfit.core.scaling import scale_segments, unscale_result, value_scales
 from ratfit.core.segments import Segments
 from ratfit.core.systems import RowSystem, denominator_cuts, domain_grid
+from ratfit.core.threads import one_blas_thread
 from ratfit.core.verify import Verification, verify
 from ratfit.errors import InputError
 
@@ -319,8 +320,9 @@ class RationalFitter(Estimator):
         work = scale_segments(segments, factors)
         log_space = self._log_space(space, segments)
         self._hint: int | None = None
-        results = [self._fit_either(space, log_space, work, j)
-                   for j in range(segments.n_channels)]
+        with one_blas_thread():  # the search's own threads; BLAS pools only spin
+            results = [self._fit_either(space, log_space, work, j)
+                       for j in range(segments.n_channels)]
         verifier = self._search_parts(space, segments).verifier
         self.results_ = [
             unscale_result(r, segments, j, float(f), verifier)
@@ -436,7 +438,8 @@ class ArnoldiSystems(SeedSystems):
     def split(self, space: PolynomialSpace, seg: Segments, j: int, n: int, m: int,
               like: RowSystem | None = None) -> RowSystem | None:
         try:
-            q0 = sk_denominator(space, seg, j, n, m, like=like)  # type: ignore[arg-type]
+            q0 = sk_denominator(space, seg, j, n, m, like=like,  # type: ignore[arg-type]
+                                as_function=True)
             return ArnoldiSystem(space, seg, j, n, m, q0, like=like)  # type: ignore[arg-type]
         except InputError:
             return None  # too few points for this many coefficients: the seed's form says so
