@@ -9,7 +9,8 @@ Subsets grow from 1e4 samples to every valid cell (~1.1e6). Each size runs in
 a fresh process so its peak memory (ru_maxrss) is its own; ratios are against
 the smallest size in the same run.
 
-    nice python benchmarks/bench_merl.py [--sizes 10000 100000 0] [--dt 0.05] [--timeout 900]
+    nice python benchmarks/bench_merl.py [--sizes 10000 30000 100000 300000 0] [--dt 0.05]
+        [--timeout 900]
 
 Size 0 means every valid cell. A size that runs past --timeout is reported as such.
 """
@@ -79,7 +80,7 @@ def one(path: str, size: int, dt: float, floor_rel: float, jobs: int, param: str
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--sizes", type=int, nargs="+", default=[10_000, 100_000, 0])
+    ap.add_argument("--sizes", type=int, nargs="+", default=[10_000, 30_000, 100_000, 300_000, 0])
     ap.add_argument("--dt", type=float, default=0.05)
     ap.add_argument("--floor-rel", type=float, default=0.002)
     ap.add_argument("--jobs", type=int, default=2)
