@@ -17,7 +17,8 @@ from numpy.typing import NDArray
 
 from ratfit.errors import InputError
 
-__all__ = ["QPSolution", "SOLVERS", "available_solvers", "register_solver", "solve_qp"]
+__all__ = ["QPSolution", "SOLVERS", "available_solvers", "first_available", "register_solver",
+           "solve_qp"]
 
 Array = NDArray[np.float64]
 
@@ -92,6 +93,12 @@ def register_solver(name: str, module: str, fn: Callable[[Array, Array], QPSolut
 
 def available_solvers() -> list[str]:
     return [k for k, (mod, _) in SOLVERS.items() if importlib.util.find_spec(mod) is not None]
+
+
+def first_available(names: tuple[str, ...]) -> str:
+    """The first installed solver of ``names`` (the last one if none is)."""
+    have = set(available_solvers())
+    return next((n for n in names if n in have), names[-1])
 
 
 def check_solver(name: str) -> str:
