@@ -19,6 +19,7 @@ from ratfit.cli.main import (
     trust_edited_option,
 )
 from ratfit.cli.options import aliased_option, fit_options, pop_fit_params
+from ratfit.core.solvers import first_available
 
 
 @main.group("brdf")
@@ -58,12 +59,17 @@ _ISOTROPIC_DEFAULT = {"CARTESIAN": "ISOTROPIC_TV_TL_DPHI"}
               show_default=True, help="Spectral (Cornell) data: CIE 1931 -> linear sRGB, XYZ, "
                                       "or the bands as they are.")
 @click.option("--max-points", type=int, help="Fit a random subset of this many samples.")
-@fit_options(exclude=("domain",))
+@fit_options(exclude=("domain",), defaults={"solver": first_available(("daqp", "quadprog"))})
+@click.option("--no-polish", "no_polish", is_flag=True,
+              help="Keep the search's minimum-norm fit (default: replace it by the "
+                   "least-squares fit of the same size inside the segments when that "
+                   "verifies).")
 @click.option("--json", "as_json", is_flag=True, help="Print one JSON object on stdout.")
 def brdf_fit(input_path: Path, output: Path | None, fmt: str | None, param: str | None,
              dt: float | None, abs_width: float | None, floor_rel: float | None, cosine: bool,
              clamp: float | None, positive_q: bool, channels: tuple[str, ...], color: str,
-             max_points: int | None, as_json: bool, **options: Any) -> None:
+             max_points: int | None, no_polish: bool, as_json: bool,
+             **options: Any) -> None:
     """Fit each channel of a measured BRDF with a verified rational function."""
     from ratfit.brdf.fitter import (
         brdf_metrics,
@@ -100,7 +106,7 @@ def brdf_fit(input_path: Path, output: Path | None, fmt: str | None, param: str 
     try:
         fitter, seg, meta = fit_brdf(
             ds, dt=dt, abs_width=abs_width, floor_rel=floor_rel, cosine=cosine, clamp=clamp,
-            positive_q=positive_q, callback=cb, **params,
+            positive_q=positive_q, polish=not no_polish, callback=cb, **params,
         )
     finally:
         stop()

@@ -457,13 +457,17 @@ class SearchParts:
     ``systems`` builds the row systems, ``verifier`` decides success, and
     ``pole_free`` turns on q > 0 constraint generation
     (:func:`ratfit.core.qp.solve_pole_free`) on the domain grid, or on
-    ``pole_grid`` (window points) when given.
+    ``pole_grid`` (window points) when given. ``repair``, when given, gets a
+    candidate that meets every segment but fails the verifier otherwise and may
+    return another fit of the same (n, m) with its (passing) verification.
     """
 
     systems: SystemFactory
     verifier: Callable[[RationalFunction, Segments, int], Verification]
     pole_free: bool = True
     pole_grid: Array | None = None
+    repair: Callable[[RationalFunction, Segments, int],
+                     tuple[RationalFunction, Verification] | None] | None = None
 
 
 def fit(segments: Segments, **params) -> FitResult:
@@ -556,6 +560,11 @@ class SearchEngine:
         if c is not None:
             rf = system.to_rational(n, m, c)
             ver = self.parts.verifier(rf, self.seg, self.channel)
+            if (self.parts.repair is not None and not ver.verified
+                    and ver.n_violations == 0 and np.isfinite(ver.linf)):
+                fixed = self.parts.repair(rf, self.seg, self.channel)
+                if fixed is not None:
+                    rf, ver = fixed
         return att, rf, ver
 
     def _seed(self, n: int, m: int) -> Candidate:

@@ -1,0 +1,140 @@
+"""Least-squares polish of a verified fit, inside its segments.
+
+The search answers "what is the smallest (n, m) that fits"; its QP picks, among
+the fits of that size, the one of smallest coefficient norm, which may run
+along the edge of every segment. Users who compare fits (RMSE against the
+measurements, against an analytic BRDF model) want the best fit of that size
+inside the bounds. With q fixed in scale (mean of q over the data = 1), the
+linearised error sum_i w_i^2 (p(x_i) - y_i q(x_i))^2 / q0(x_i)^2 (Sanathanan-
+Koerner weights from the starting fit q0) is a convex quadratic in the
+coefficients, and "r(x_i) inside the inner part of segment i" is linear:
+
+    p(x_i) - (lo_i + tau w_i) q(x_i) >= 0,   (hi_i - tau w_i) q(x_i) - p(x_i) >= 0,
+
+so the polish is one more QP in the same bases, with the same (n, m). Extra
+rows keep q > 0 and p >= 0 at given points (a BRDF's valid configurations),
+entering by an active set only where violated. The caller verifies the result
+like any other candidate and keeps the starting fit if it is not better.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from ratfit.core.rational import RationalFunction
+from ratfit.core.segments import Segments
+from ratfit.core.solvers import solve_qp
+
+__all__ = ["polish_fit"]
+
+Array = NDArray[np.float64]
+
+
+def _design(rf: RationalFunction, x: Array) -> tuple[Array, Array]:
+    P = (rf.p_basis or rf.space).design(x, rf.n)
+    Q = (rf.q_basis or rf.space).design(x, rf.m)
+    return P, Q
+
+
+def polish_fit(
+    rf: RationalFunction,
+    seg: Segments,
+    channel: int = 0,
+    *,
+    weights: ArrayLike | None = None,
+    positive_at: ArrayLike | None = None,
+    tau: float = 0.02,
+    solver: str = "daqp",
+    max_rounds: int = 30,
+    start_rows: int = 4000,
+) -> RationalFunction | None:
+    """The least-squares fit of the same size as ``rf`` whose values stay in the
+    inner part (a fraction ``tau`` of each width off both ends) of every segment.
+
+    ``weights`` (N,) weight each point's error (default 1: plain RMSE).
+    ``positive_at`` (G, d) are points (original coordinates) where q > 0 and
+    p >= 0 are also required. Returns None when the QP fails; the result is
+    a candidate, to be verified by the caller.
+    """
+    x = seg.x
+    lo = seg.lo[:, channel]
+    hi = seg.hi[:, channel]
+    y = seg.center[:, channel]
+    N = x.shape[0]
+    n, m = rf.n, rf.m
+    P, Q = _design(rf, x)
+    q0 = Q @ rf.q
+    if not np.all(np.isfinite(q0)) or np.all(q0 == 0):
+        return None
+    if np.median(q0) < 0:
+        q0 = -q0
+    if np.any(q0 <= 0):
+        return None
+    w = np.ones(N) if weights is None else np.asarray(weights, dtype=float).ravel()
+    # Objective: || diag(w / q0) (P a - y Q b) ||^2, plus a tiny ridge for uniqueness.
+    M = np.hstack([P, -y[:, None] * Q]) * (w / q0)[:, None]
+    H = M.T @ M
+    k = n + m
+    ridge = 1e-10 * max(float(np.trace(H)) / k, 1e-300)
+    H[np.diag_indices(k)] += ridge
+    try:
+        R = np.linalg.cholesky(H).T  # H = R^T R, z = R c
+    except np.linalg.LinAlgError:
+        return None
+    Rinv = np.linalg.solve(R, np.eye(k))
+    width = hi - lo
+    lo_in = lo + tau * width
+    hi_in = hi - tau * width
+    # Inequality rows G c >= h, in the (a, b) coefficients.
+    G_lo = np.hstack([P, -lo_in[:, None] * Q])
+    G_hi = np.hstack([-P, hi_in[:, None] * Q])
+    mean_q = np.concatenate([np.zeros(n), Q.mean(axis=0)])
+    rows_data = np.vstack([G_lo, G_hi])
+    scale = np.linalg.norm(rows_data, axis=1)
+    scale[scale == 0] = 1.0
+    rows_data = rows_data / scale[:, None]
+    # q on the extra points at least 1 % of its smallest value on the data (q is
+    # scaled to mean 1 there): a margin that a sign change between points cannot hide in.
+    q_floor = 0.01 * float(q0.min() / q0.mean())
+    if positive_at is not None and len(positive_at):
+        Pg, Qg = _design(rf, np.asarray(positive_at, dtype=float))
+        pn = np.linalg.norm(Pg, axis=1)
+        pn[pn == 0] = 1.0
+        grid = np.vstack([np.hstack([np.zeros_like(Pg), Qg]),
+                          np.hstack([Pg / pn[:, None], np.zeros_like(Qg)])])
+        h_grid = np.concatenate([np.full(len(Qg), q_floor), np.zeros(len(Pg))])
+    else:
+        grid, h_grid = np.zeros((0, k)), np.zeros(0)
+    all_rows = np.vstack([rows_data, grid])
+    all_h = np.concatenate([np.zeros(rows_data.shape[0]), h_grid])
+    # Start from the rows nearest to binding for the starting fit, spread over the data.
+    c0 = np.concatenate([rf.p, rf.q]) / float(Q.mean(axis=0) @ rf.q)
+    slack = rows_data @ c0
+    order = np.argsort(slack)
+    active = np.zeros(all_rows.shape[0], dtype=bool)
+    active[order[: min(start_rows, order.size)]] = True
+    batch = max(200, 8 * k)
+    c = None
+    for _ in range(max_rounds):
+        idx = np.flatnonzero(active)
+        A = all_rows[idx] @ Rinv
+        b = all_h[idx]
+        # mean q = 1 as two inequalities (the adapters take A z >= b only)
+        e = mean_q @ Rinv
+        A = np.vstack([A, e, -e])
+        b = np.concatenate([b, [1.0, -1.0]])
+        sol = solve_qp(A, b, solver)
+        if sol.status != "optimal" or sol.x is None:
+            return None
+        c = Rinv @ sol.x
+        res = all_rows @ c - all_h
+        bad = np.flatnonzero(~(res >= 0) & ~active)
+        if bad.size == 0:
+            break
+        active[bad[np.argsort(res[bad])[:batch]]] = True
+    else:
+        return None
+    if c is None:
+        return None
+    return RationalFunction(rf.space, c[:n], c[n:], p_basis=rf.p_basis, q_basis=rf.q_basis)

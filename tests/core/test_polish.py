@@ -1,0 +1,93 @@
+"""The least-squares polish: same (n, m), inside the segments, closer to the data."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from ratfit.core.polish import polish_fit
+from ratfit.core.segments import Segments
+from ratfit.core.verify import verify
+from ratfit.fitting.search import RationalFitter
+
+
+def _rmse(rf, seg: Segments) -> float:
+    return float(np.sqrt(np.mean((rf(seg.x) - seg.center[:, 0]) ** 2)))
+
+
+def _fit(x: np.ndarray, y: np.ndarray, dt: float):
+    seg = Segments.from_widths(x, y, dt=dt)
+    res = RationalFitter(solver="daqp").fit(seg).result_
+    assert res.success
+    return res.rational, seg
+
+
+def test_polish_keeps_size_stays_inside_and_halves_the_error() -> None:
+    x = np.linspace(0.0, 1.0, 400)
+    y = np.exp(2 * x) / (1.3 - x)
+    rf, seg = _fit(x, y, 0.05)
+    pol = polish_fit(rf, seg, 0, tau=0.02)
+    assert pol is not None and (pol.n, pol.m) == (rf.n, rf.m)
+    ver = verify(pol, seg, channel=0)
+    assert ver.verified and ver.n_violations == 0 and ver.poles_in_domain == 0
+    # inside the inner 96 % of every segment (tau = 0.02 off each end)
+    w = seg.hi[:, 0] - seg.lo[:, 0]
+    r = pol(seg.x)
+    assert np.all(r >= seg.lo[:, 0] + 0.02 * w - 1e-9 * np.abs(seg.hi[:, 0]))
+    assert np.all(r <= seg.hi[:, 0] - 0.02 * w + 1e-9 * np.abs(seg.hi[:, 0]))
+    # the minimum-norm fit runs along the segments' edges; the polish does not
+    assert _rmse(pol, seg) < 0.5 * _rmse(rf, seg)
+
+
+def test_polish_respects_extra_positivity_points() -> None:
+    # p / q fitted on [0, 1] only; the polish must also keep q > 0, p >= 0 on [1, 1.5].
+    x = np.linspace(0.0, 1.0, 300)
+    y = 1.0 + np.sin(3 * x) ** 2
+    rf, seg = _fit(x, y, 0.03)
+    extra = np.linspace(0.0, 1.5, 301)[:, None]
+    pol = polish_fit(rf, seg, 0, positive_at=extra)
+    assert pol is not None
+    assert np.all(pol.denominator(extra) > 0)
+    assert np.all(pol.numerator(extra) >= -1e-12)
+    assert verify(pol, seg, channel=0).verified
+
+
+def test_polish_refuses_a_start_with_q_of_both_signs() -> None:
+    x = np.linspace(-1.0, 1.0, 50)
+    seg = Segments.from_widths(x, np.ones_like(x), dt=0.1)
+    from ratfit.core.bases import PolynomialSpace
+    from ratfit.core.rational import RationalFunction
+
+    rf = RationalFunction(PolynomialSpace("legendre", [[-1.0, 1.0]]), [1.0], [0.0, 1.0])
+    assert polish_fit(rf, seg, 0) is None
+
+
+@settings(max_examples=15, deadline=None)
+@given(a=st.floats(0.2, 3.0), c=st.floats(1.05, 3.0), dt=st.sampled_from([0.01, 0.05, 0.2]))
+def test_polish_is_never_outside_its_band(a: float, c: float, dt: float) -> None:
+    x = np.linspace(0.0, 1.0, 120)
+    y = np.exp(a * x) / (c - x)
+    rf, seg = _fit(x, y, dt)
+    pol = polish_fit(rf, seg, 0)
+    if pol is None:  # allowed: the caller keeps the fit it has
+        return
+    assert verify(pol, seg, channel=0).verified
+    w = seg.hi[:, 0] - seg.lo[:, 0]
+    r = pol(seg.x)
+    assert np.all(r >= seg.lo[:, 0] + 0.02 * w - 1e-9 * y.max())
+    assert np.all(r <= seg.hi[:, 0] - 0.02 * w + 1e-9 * y.max())
+
+
+@pytest.mark.parametrize("tau", [0.0, 0.1])
+def test_polish_tau_bounds_the_band(tau: float) -> None:
+    x = np.linspace(0.0, 1.0, 200)
+    y = 2.0 + x**2
+    rf, seg = _fit(x, y, 0.1)
+    pol = polish_fit(rf, seg, 0, tau=tau)
+    assert pol is not None
+    w = seg.hi[:, 0] - seg.lo[:, 0]
+    r = pol(seg.x)
+    assert np.all(r >= seg.lo[:, 0] + tau * w - 1e-9)
+    assert np.all(r <= seg.hi[:, 0] - tau * w + 1e-9)
