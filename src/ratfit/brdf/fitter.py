@@ -39,12 +39,20 @@ from ratfit.fitting.search import RationalFitter, SearchParts, SystemFactory
 from ratfit.io.data import Dataset
 from ratfit.io.fitfile import SavedFit, fit_document, load_fit, save_fit
 
-__all__ = ["BRDFFit", "BRDFFitter", "brdf_metrics", "brdf_segments", "cos_theta_l", "fit_brdf",
-           "load_brdf_fit", "nonnegative_segments", "prepare_values", "save_brdf_fit",
-           "subset_status", "valid_grid"]
+__all__ = ["BRDF_SOLVER", "DEFAULT_DT", "DEFAULT_FLOOR_REL", "BRDFFit", "BRDFFitter",
+           "brdf_metrics", "brdf_segments", "cos_theta_l", "fit_brdf", "load_brdf_fit",
+           "nonnegative_segments", "prepare_values", "save_brdf_fit", "subset_status",
+           "valid_grid"]
 
 Array = NDArray[np.float64]
-BRDF_SOLVERS = ("daqp", "quadprog")
+# DAQP first: quadprog was seen looping forever inside one call on a BRDF QP with
+# validity rows (1217 x 37, garnet_red) that DAQP solves in 6 ms.
+BRDF_SOLVER = first_available(("daqp", "quadprog"))
+# Segments when neither the command nor the file gives any: 5 % of each value, the
+# order of a gonioreflectometer's noise, with a floor of 0.2 % of the channel's
+# largest value so that the diffuse part and measured zeros stay fittable.
+DEFAULT_DT = 0.05
+DEFAULT_FLOOR_REL = 0.002
 _NEEDS_THETA_L = ("full", "isotropic", "tv_tl")
 
 
@@ -86,12 +94,16 @@ def brdf_segments(
     """Segments for a BRDF dataset; with several widths each segment takes the largest.
 
     ``floor_rel`` is an absolute half-width per channel: floor_rel x max |y_j|.
-    Without any width the file's own intervals (ALTA #VS 1/2) are used.
+    Without any width the file's own intervals (ALTA #VS 1/2) are used, and
+    without those :data:`DEFAULT_DT` with a floor of :data:`DEFAULT_FLOOR_REL`.
     """
     if dt is None and abs_width is None and floor_rel is None:
-        if cosine or clamp is not None:
-            raise InputError("cosine weighting and clamping need --dt/--abs-width segments")
-        return ds.segments()
+        if ds.lo is not None and ds.hi is not None:
+            if cosine or clamp is not None:
+                raise InputError("cosine weighting and clamping need --dt/--abs-width "
+                                 "segments, not the file's own intervals")
+            return ds.segments()
+        dt, floor_rel = DEFAULT_DT, DEFAULT_FLOOR_REL
     y = prepare_values(ds, cosine=cosine, clamp=clamp)
     floor_rel = check_width(floor_rel, "floor_rel")
     w = None
@@ -117,6 +129,11 @@ def fit_brdf(ds: Dataset, *, dt: float | None = None, abs_width: float | None = 
     from ratfit.core.columns import constant_axes
 
     full = ds
+    own = ds.lo is not None and ds.hi is not None
+    if dt is None and abs_width is None and floor_rel is None and not own:
+        dt, floor_rel, default_widths = DEFAULT_DT, DEFAULT_FLOOR_REL, True
+    else:
+        default_widths = False
     dropped = constant_axes(ds.x) if ds.n_points > 1 else np.arange(0)
     keep = np.setdiff1d(np.arange(ds.x.shape[1]), dropped)
     if dropped.size:
@@ -151,7 +168,8 @@ def fit_brdf(ds: Dataset, *, dt: float | None = None, abs_width: float | None = 
         "fold_phi_d": bool(ds.meta.get("fold_phi_d", False)),
         "param_out": ds.meta.get("param_out"),
         "channel_names": list(seg.names),
-        "segments": {"dt": dt, "abs_width": abs_width, "floor_rel": floor_rel},
+        "segments": {"dt": dt, "abs_width": abs_width, "floor_rel": floor_rel,
+                     "default": default_widths},
         # a fit of a random subset is verified on that subset only
         "verified_on": ("all samples" if not ds.meta.get("subset") else
                         f"a random subset of {ds.meta['subset']['points']} of "
@@ -216,6 +234,8 @@ class BRDFFitter(RationalFitter):
         (segments and the physical check) and has the smaller RMSE. Same size,
         same guarantees, errors several times smaller than the search's
         minimum-norm fit, which runs along the segments' edges.
+    solver : str, default "daqp"
+        As for RationalFitter, but DAQP (quadprog when DAQP is not installed).
     physical : bool, default True
         Constrain q > 0 and p >= 0 (so r >= 0) on a grid of direction pairs
         above the horizon inside the domain (:func:`ratfit.brdf.validity.configurations`),
@@ -238,11 +258,9 @@ class BRDFFitter(RationalFitter):
     """
 
     def __init__(self, *, parametrization: str = "UNKNOWN", positive_q: bool = False,
-                 physical: bool = True, polish: bool = True, **params: Any) -> None:
-        # DAQP first: quadprog was seen looping forever inside one call on a BRDF QP
-        # with validity rows (1217 x 37, garnet_red) that DAQP solves in 6 ms.
-        params.setdefault("solver", first_available(BRDF_SOLVERS))
-        super().__init__(**params)
+                 physical: bool = True, polish: bool = True,
+                 solver: str = BRDF_SOLVER, **params: Any) -> None:
+        super().__init__(solver=solver, **params)
         self.parametrization = parametrization
         self.positive_q = positive_q
         self.physical = physical
@@ -312,14 +330,17 @@ class BRDFFitter(RationalFitter):
         if rf is None:
             return res
         y = seg.center[:, j]
-        with np.errstate(all="ignore"):
-            before = float(np.sqrt(np.mean((rf(seg.x) - y) ** 2)))
+
+        def score(r: RationalFunction) -> float:
+            with np.errstate(all="ignore"):
+                return float(np.sqrt(np.mean((r(seg.x) - y) ** 2)))
+
+        before = score(rf)
         out = self._polish_rounds(rf, seg, j)
         if out is None:
             return res
         cand, ver = out
-        with np.errstate(all="ignore"):
-            after = float(np.sqrt(np.mean((cand(seg.x) - y) ** 2)))
+        after = score(cand)
         if not after < before:
             return res
         return replace(res, rational=cand, verification=ver,

@@ -9,6 +9,7 @@ from typing import Any
 import click
 import numpy as np
 
+from ratfit.brdf.fitter import BRDF_SOLVER, DEFAULT_DT, DEFAULT_FLOOR_REL
 from ratfit.cli.main import (
     EXIT_NO_FIT,
     _fit_json,
@@ -19,7 +20,6 @@ from ratfit.cli.main import (
     trust_edited_option,
 )
 from ratfit.cli.options import aliased_option, fit_options, pop_fit_params
-from ratfit.core.solvers import first_available
 
 
 @main.group("brdf")
@@ -43,7 +43,10 @@ _ISOTROPIC_DEFAULT = {"CARTESIAN": "ISOTROPIC_TV_TL_DPHI"}
 @click.option("--param", "param", default=None,
               help="Parametrization to fit in (ALTA names, e.g. RUSIN_TH_TD_PD, COS_TH_TD_PD, "
                    "STARK_2D); default: the file's own.")
-@click.option("--dt", type=float, help="Relative segment width: [(1-dt) y, (1+dt) y].")
+@click.option("--dt", type=float,
+              help="Relative segment width: [(1-dt) y, (1+dt) y]. Without --dt, --abs-width "
+                   "and --floor-rel: the file's own intervals, else --dt 0.05 --floor-rel "
+                   "0.002.")
 @click.option("--abs-width", type=float,
               help="Absolute half-width (floor); with --dt each segment takes the larger.")
 @click.option("--floor-rel", type=float,
@@ -59,7 +62,7 @@ _ISOTROPIC_DEFAULT = {"CARTESIAN": "ISOTROPIC_TV_TL_DPHI"}
               show_default=True, help="Spectral (Cornell) data: CIE 1931 -> linear sRGB, XYZ, "
                                       "or the bands as they are.")
 @click.option("--max-points", type=int, help="Fit a random subset of this many samples.")
-@fit_options(exclude=("domain",), defaults={"solver": first_available(("daqp", "quadprog"))})
+@fit_options(exclude=("domain",), defaults={"solver": BRDF_SOLVER})
 @click.option("--no-polish", "no_polish", is_flag=True,
               help="Keep the search's minimum-norm fit (default: replace it by the "
                    "least-squares fit of the same size inside the segments when that "
@@ -102,6 +105,11 @@ def brdf_fit(input_path: Path, output: Path | None, fmt: str | None, param: str 
         if not as_json:
             click.echo(f"parametrization: {param} (chosen for the file's {own}; "
                        "--param overrides)", err=True)
+    if dt is None and abs_width is None and floor_rel is None and ds.lo is None \
+            and not as_json:
+        click.echo(f"segments: y +- {DEFAULT_DT:g} y with a floor of {DEFAULT_FLOOR_REL:g} x the "
+                   "channel's largest value (default; --dt, --abs-width, --floor-rel "
+                   "override)", err=True)
     cb, stop = _progress(not as_json)
     try:
         fitter, seg, meta = fit_brdf(
