@@ -24,7 +24,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from ratfit.brdf.parametrizations import get_parametrization
+from ratfit.brdf.parametrizations import PARAMETRIZATIONS, get_parametrization
 from ratfit.core.bases import PolynomialSpace
 from ratfit.core.qp import ArnoldiSystem
 from ratfit.core.rational import RationalFunction
@@ -393,14 +393,17 @@ class BRDFFitter(RationalFitter):
         of valid direction pairs (:func:`ratfit.brdf.validity.check_validity`)."""
         from ratfit.brdf.validity import check_validity
 
-        ver = verify(rf, seg, channel=j)
+        known = get_parametrization_or_none(self.parametrization) is not None
+        # n-D with a known parametrization: the valid direction pairs are checked
+        # below, so q's sign on the whole coordinate box (mostly invalid pairs) is not.
+        ver = verify(rf, seg, channel=j, box_check=not known or rf.space.dim == 1)
         if ver.n_violations or not np.isfinite(ver.linf):
             return ver
         if rf.space.dim == 1 and ver.poles_in_domain:
             return ver
         chk = check_validity(rf, self.parametrization, keep=getattr(self, "_keep", None))
         if chk is None:
-            return ver  # unknown parametrization: the plain box check decides
+            return verify(rf, seg, channel=j)  # the plain box check decides
         if not hasattr(self, "_checks"):
             self._checks, self._extra = {}, []
         self._checks[id(rf)] = chk
@@ -409,8 +412,14 @@ class BRDFFitter(RationalFitter):
             self._extra.append(chk.bad_points[:200])
         with np.errstate(divide="ignore", invalid="ignore"):
             at_samples = bool(np.all(rf(seg.x) >= 0))
-        ok = chk.valid and at_samples and ver.poles_in_domain == 0
-        return replace(ver, verified=ok, denominator_sign_changes=chk.min_q <= 0)
+        ok = (chk.valid and at_samples and ver.poles_in_domain == 0
+              and not ver.denominator_sign_changes)
+        return replace(ver, verified=ok,
+                       denominator_sign_changes=ver.denominator_sign_changes or chk.min_q <= 0)
+
+
+def get_parametrization_or_none(name: str):
+    return PARAMETRIZATIONS.get(str(name).upper())
 
 
 class _BRDFSystems:

@@ -89,10 +89,14 @@ class Verification:
         return d
 
 
-def verify(rf: RationalFunction, seg: Segments, *, channel: int = 0) -> Verification:
+def verify(rf: RationalFunction, seg: Segments, *, channel: int = 0,
+           box_check: bool = True) -> Verification:
     """Evaluate ``rf`` at every point of ``seg`` (one channel) and check poles.
 
     Non-finite values count as violations (q = 0 at a data point is a miss).
+    ``box_check=False`` (n-D only) leaves out q's sign on a grid of the domain
+    box, for callers that check a region of their own instead (BRDFs: the
+    direction pairs above the horizon); q's sign at the data is still checked.
 
     Parameters
     ----------
@@ -135,7 +139,7 @@ def verify(rf: RationalFunction, seg: Segments, *, channel: int = 0) -> Verifica
     nz = y != 0
     with np.errstate(divide="ignore", invalid="ignore"):
         relerr = err[nz] / np.abs(y[nz])
-    poles, sign_change = pole_check(rf, seg.x, q)
+    poles, sign_change = pole_check(rf, seg.x, q, box=box_check or rf.space.dim == 1)
     ok = n_viol == 0 and not poles and not sign_change and bool(finite.all())
     return Verification(
         verified=ok,
@@ -163,7 +167,8 @@ def _rms(err: NDArray[np.float64]) -> float:
 
 
 def pole_check(
-    rf: RationalFunction, x: NDArray[np.float64], q_at_x: NDArray[np.float64] | None = None
+    rf: RationalFunction, x: NDArray[np.float64], q_at_x: NDArray[np.float64] | None = None,
+    *, box: bool = True,
 ) -> tuple[list[float], bool]:
     """Poles of r in the domain: (real pole locations in 1-D, whether q changes sign).
 
@@ -177,9 +182,10 @@ def pole_check(
     poles: list[float] = []
     if space.dim == 1:
         poles = [float(v) for v in rf.real_poles_in_domain()]
-    grid = domain_grid(space.dim, len(x))  # the grid the q > 0 rows are generated on
-    qg = rf.denominator(grid, window=True)
-    vals = np.concatenate([np.ravel(q_at_x), np.ravel(qg)])
+    vals = np.ravel(q_at_x)
+    if box:
+        grid = domain_grid(space.dim, len(x))  # the grid the q > 0 rows are generated on
+        vals = np.concatenate([vals, np.ravel(rf.denominator(grid, window=True))])
     if not np.all(np.isfinite(vals)):
         return poles, True
     sign_change = bool(np.any(vals > 0) and np.any(vals < 0)) or bool(np.any(vals == 0))
