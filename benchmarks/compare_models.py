@@ -1,16 +1,15 @@
-"""Rational BRDF fits against the best analytic model on real data (Cornell, ALTA retro).
+"""Default rational BRDF fits against the best analytic model, per channel, on real data.
 
-For each data set: one verified rational fit per channel (ratfit.brdf.fitter.fit_brdf) and
-least-squares fits of several analytic models (ratfit.brdf.analytic_models); every row reports
-the coefficients used, RMSE and relative RMSE on all samples (ratfit.brdf.fitter.brdf_metrics),
-and the ratio of each RMSE to the rational fit's (the baseline, same run).
+For each Cornell material: `ratfit brdf fit DATA` with no options (what
+`ratfit.brdf.fitter.fit_brdf` does without widths: ISOTROPIC_TV_TL_DPHI, 5 %
+segments with a floor of 0.2 % of the channel's max, physical validity, the
+least-squares polish), and least-squares fits of lambert+ggx and lambert+beckmann
+(`ratfit.brdf.analytic_models`, 6 random starts). Per channel it prints the
+coefficients, RMSE, log RMSE and cos RMSE of the rational fit, the same errors of
+the better analytic model for each metric, their ratio (model / rational: above 1
+means the rational fit is better), and whether the rational fit wins all three.
 
-    python benchmarks/compare_models.py [--data DIR] [--only NAME]
-
-Segment settings per data set are those under which the rational fit verifies
-(measured): Cornell dt 0.2 with a floor of 0.5 % of each channel's max and q > 0
-on the valid grid; retro dt 0.5, floor 1 %, q > 0 on the valid grid, at the split
-(23, 79) the search reached (its full search takes over 10 minutes).
+    python benchmarks/compare_models.py [--data DIR] [--only NAME] [--jobs 2]
 """
 
 from __future__ import annotations
@@ -21,82 +20,69 @@ from pathlib import Path
 
 import numpy as np
 
-from ratfit.brdf.fitter import BRDFFit, brdf_metrics, fit_brdf
+from ratfit.brdf.analytic_models import Model, fit_model
+from ratfit.brdf.fitter import brdf_metrics, fit_brdf
 from ratfit.brdf.io import brdf_dataset
 from ratfit.brdf.parametrizations import get_parametrization
-from ratfit.viz.report import cos_factor, model_fit_for
 
 REPO = Path(__file__).resolve().parents[1]
-MODELS = ("lambert+blinn", "lambert+ward", "lambert+beckmann", "lambert+ggx",
-          "lambert+lafortune*2")
-CASES = [
-    ("cornell/garnet_red.brdf", "ISOTROPIC_TV_TL_DPHI",
-     {"dt": 0.2, "floor_rel": 0.005, "positive_q": True}),
-    ("cornell/acryl_blue.brdf", "ISOTROPIC_TV_TL_DPHI",
-     {"dt": 0.2, "floor_rel": 0.005, "positive_q": True}),
-    ("alta/retro-3M-jaune.dat", "RETRO_TV_TVL_PROJ_DPHI",
-     {"dt": 0.5, "floor_rel": 0.01, "positive_q": True, "n": 23, "m": 79}),
-]
+MODELS = ("lambert+ggx", "lambert+beckmann")
+MATERIALS = ("garnet_red", "acryl_blue", "cayman", "krylon_blue", "mystique")
+METRICS = ("rmse", "log_rmse", "cos_rmse")
+PARAM = "ISOTROPIC_TV_TL_DPHI"  # what `ratfit brdf fit` picks for Cornell's CARTESIAN
 
 
-def run_case(path: Path, param: str | None, settings: dict, max_total: int):
-    ds = brdf_dataset(path, param)
-    pname = str(ds.meta["param_in"])
-    L, V = get_parametrization(pname).to_dirs(ds.x)
-    rows = []
+def run(path: Path, jobs: int | None):
+    ds = brdf_dataset(path, PARAM)
+    L, V = get_parametrization(PARAM).to_dirs(ds.x)
     t0 = time.perf_counter()
-    if "n" not in settings:
-        settings = {**settings, "max_total": max_total}
-    fitter, _, meta = fit_brdf(ds, **settings)
+    fitter, seg, _ = fit_brdf(ds, jobs=jobs)
     secs = time.perf_counter() - t0
-    ok = all(r.success for r in fitter.results_)
-    if ok:
-        from ratfit.io.fitfile import fit_document, parse_fit
-
-        saved = parse_fit(fit_document(fitter.results_, extra={"brdf": meta}))
-        pred = BRDFFit(saved, pname).eval_coords(ds.x)
-        met = brdf_metrics(pred, ds.y, L[:, 2], ds.output_names)
-        coefs = "+".join(f"{r.n}/{r.m}" for r in fitter.results_)
-        rows.append(("rational", coefs, sum(r.total for r in fitter.results_), met, secs))
-    else:
-        print(f"  rational fit not verified on every channel (max_total={max_total})")
+    if not fitter.success_:
+        return ds, None, {}, secs
+    pred = np.stack([r.rational(seg.x) for r in fitter.results_], axis=1)
+    rat = brdf_metrics(pred, ds.y, L[:, 2], ds.output_names)
+    for name, r in zip(ds.output_names, fitter.results_, strict=True):
+        rat[name]["coefs"] = r.total
+        rat[name]["nm"] = f"{r.n}+{r.m}"
+    models = {}
     for spec in MODELS:
-        t0 = time.perf_counter()
-        mf = model_fit_for(pname, ds, spec, starts=6)
-        pred = mf.eval_dirs(L, V)
-        if cos_factor(ds):
-            pred = pred * L[:, 2:3]
-        met = brdf_metrics(pred, ds.y, L[:, 2], ds.output_names)
-        rows.append((spec, f"{mf.model.n_params} x {mf.n_channels}",
-                     mf.model.n_params * mf.n_channels, met, time.perf_counter() - t0))
-    return ds, pname, rows
+        mf = fit_model(Model(spec), L, V, ds.y, channel_names=ds.output_names, starts=6)
+        models[spec] = brdf_metrics(mf.eval_dirs(L, V), ds.y, L[:, 2], ds.output_names)
+    return ds, rat, models, secs
 
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--data", type=Path, default=REPO.parent / "shared" / "data")
-    ap.add_argument("--max-total", type=int, default=80)
-    ap.add_argument("--only", help="run the data sets whose path contains this")
+    ap.add_argument("--only", help="run the materials whose name contains this")
+    ap.add_argument("--jobs", type=int, default=None)
     args = ap.parse_args()
-    for rel, param, settings in CASES:
-        if args.only and args.only not in rel:
+    print(f"{'material':<12} {'ch':<2} {'n+m':>6} " + " ".join(
+        f"{k + ' rat/model':>22}" for k in METRICS) + f" {'wins':>5} {'fit s':>6}")
+    wins = total = 0
+    for name in MATERIALS:
+        if args.only and args.only not in name:
             continue
-        ds, pname, rows = run_case(args.data / rel, param, settings, args.max_total)
-        print(f"\n{rel}: {ds.n_points} samples, {pname}, channels {', '.join(ds.output_names)}"
-              f" (rational fit settings {settings})")
-        base = None
-        if rows and rows[0][0] == "rational":
-            base = np.mean([m["rmse"] for m in rows[0][3].values()])
-        print(f"{'fit':22s} {'coefs (n/m per ch.)':>20s} {'total':>6s} {'RMSE':>10s} "
-              f"{'rel.RMSE':>9s} {'RMSE/rat.':>9s} {'s':>7s}")
-        for name, coefs, total, met, secs in rows:
-            rmse = float(np.mean([m["rmse"] for m in met.values()]))
-            rel = float(np.mean([m["rel_rmse"] for m in met.values()]))
-            ratio = f"{rmse / base:9.2f}" if base else f"{'-':>9s}"
-            print(f"{name:22s} {coefs:>20s} {total:6d} {rmse:10.4g} {rel:9.3g} {ratio} "
-                  f"{secs:7.1f}")
-        print("(RMSE and rel. RMSE averaged over channels; rel. RMSE = RMS of (f - y)/y "
-              "over y != 0)")
+        ds, rat, models, secs = run(args.data / "cornell" / f"{name}.brdf", args.jobs)
+        if rat is None:
+            print(f"{name:<12} no verified default fit ({secs:.0f} s)")
+            continue
+        for ch in ds.output_names:
+            cells, won = [], True
+            for k in METRICS:
+                best = min(models, key=lambda s, k=k, ch=ch: models[s][ch][k])
+                b, r = models[best][ch][k], rat[ch][k]
+                won &= r < b
+                cells.append(f"{r:8.4f}/{b:7.4f} {b / r:4.1f}x")
+            wins += won
+            total += 1
+            print(f"{name:<12} {ch:<2} {rat[ch]['nm']:>6} " + " ".join(f"{c:>22}" for c in cells)
+                  + f" {'yes' if won else 'no':>5} {secs:6.1f}")
+    print(f"\nthe default rational fit beats the better of {', '.join(MODELS)} on all of "
+          f"{', '.join(METRICS)} in {wins} of {total} channels")
+    print("(each cell: rational / better model, then model / rational; fit s: the "
+          "material's three channels)")
 
 
 if __name__ == "__main__":

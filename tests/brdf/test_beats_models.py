@@ -30,3 +30,19 @@ def test_default_fit_of_acryl_blue_beats_lambert_ggx(shared_data: Path) -> None:
             assert rat[ch][key] < ggx[ch][key], (ch, key, rat[ch][key], ggx[ch][key])
     # ...with a few dozen coefficients per channel, not hundreds
     assert all(8 <= r.total <= 60 for r in fitter.results_)
+
+
+def test_default_width_follows_what_the_data_needs(shared_data: Path) -> None:
+    from ratfit.brdf.fitter import DEFAULT_DT, default_dt, prepare_values
+
+    exr = brdf_dataset(shared_data / "alta" / "data-example-01.exr", None)
+    # nearest-neighbour resampling: neighbours jump by up to 19.8 % (B)
+    assert default_dt(exr.x, prepare_values(exr)) == 0.22
+    cornell = brdf_dataset(shared_data / "cornell" / "garnet_red.brdf", "ISOTROPIC_TV_TL_DPHI")
+    assert default_dt(cornell.x, prepare_values(cornell)) == DEFAULT_DT  # no near pairs
+    # the same point measured twice, 1.0 and 1.5: the segments must overlap
+    x = np.array([[0.0, 0.0], [1e-4, 0.0], [1.0, 1.0], [0.5, 0.2]])
+    y = np.array([1.0, 1.5, 1.0, 1.0])
+    dt = default_dt(x, y, floor_rel=0.0)
+    assert dt == 0.22  # 1.1 x |1.5 - 1.0| / (1.5 + 1.0)
+    assert (1 + dt) * 1.0 >= (1 - dt) * 1.5

@@ -9,7 +9,7 @@ from typing import Any
 import click
 import numpy as np
 
-from ratfit.brdf.fitter import BRDF_SOLVER, DEFAULT_DT, DEFAULT_FLOOR_REL
+from ratfit.brdf.fitter import BRDF_SOLVER, DEFAULT_DT, DEFAULT_FLOOR_REL, default_dt
 from ratfit.cli.main import (
     EXIT_NO_FIT,
     _fit_json,
@@ -107,8 +107,12 @@ def brdf_fit(input_path: Path, output: Path | None, fmt: str | None, param: str 
                        "--param overrides)", err=True)
     if dt is None and abs_width is None and floor_rel is None and ds.lo is None \
             and not as_json:
-        click.echo(f"segments: y +- {DEFAULT_DT:g} y with a floor of {DEFAULT_FLOOR_REL:g} x the "
-                   "channel's largest value (default; --dt, --abs-width, --floor-rel "
+        d = default_dt(ds.x, ds.y) if ds.y is not None else DEFAULT_DT
+        why = "" if d == DEFAULT_DT else (
+            f", widened from {DEFAULT_DT:g} so that samples measured at nearly the same "
+            "point have overlapping segments")
+        click.echo(f"segments: y +- {d:.3g} y with a floor of {DEFAULT_FLOOR_REL:g} x the "
+                   f"channel's largest value (default{why}; --dt, --abs-width, --floor-rel "
                    "override)", err=True)
     cb, stop = _progress(not as_json)
     try:
