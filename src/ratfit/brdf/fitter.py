@@ -88,8 +88,9 @@ def default_dt(x: ArrayLike, y: ArrayLike, floor_rel: float = DEFAULT_FLOOR_REL,
     itself needs more. Two samples closer than ``near`` (a fraction of each axis's
     span) are, for a smooth function, the same point measured twice: their segments
     must overlap, so dt is at least 1.1 x the largest |y_i - y_j| / (y_i + y_j) over
-    such pairs (floors taken off), rounded up to a hundredth. Resampled slices (ALTA's EXR: nearest-neighbour
-    jumps) get dt 0.22 this way; scattered goniometer data keeps 0.05.
+    such pairs (floors taken off), rounded up to a hundredth. Resampled slices
+    (ALTA's EXR: nearest-neighbour jumps) get dt 0.22 this way; scattered
+    goniometer data keeps 0.05.
     """
     from scipy.spatial import cKDTree
 
