@@ -740,10 +740,8 @@ class SearchEngine:
             return []
         # 2. staircase walk below the best total.
         m = 1
-        while True:
-            target = best[0] + best[1] - 1
-            if target < lo:
-                break
+        target = best[0] + best[1] - 1
+        while target >= lo:
             cols = []
             mm = m
             width = self._batch_width()
@@ -752,11 +750,21 @@ class SearchEngine:
                     cols.append((target - mm, mm))
                 mm += 1
             if not cols:
-                break
+                # No split of this total verified. When one of them was a QP-feasible
+                # candidate rejected by the verifier (a BRDF fit negative or through a
+                # pole between samples), success is not monotone in the total: a
+                # smaller total may still verify, so the walk goes on below it.
+                rejected = any(k[0] + k[1] == target and v[0].status == "feasible"
+                               for k, v in self.cache.items())
+                if not rejected:
+                    break
+                target, m = target - 1, 1
+                continue
             self.test_many(cols)
             hit = next((s for s in cols if self.ok(s)), None)
             if hit is not None:
                 best, m = hit, hit[1]
+                target = best[0] + best[1] - 1
             else:
                 m = mm
         tot = best[0] + best[1]
