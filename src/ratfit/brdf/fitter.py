@@ -24,7 +24,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from ratfit.brdf.parametrizations import PARAMETRIZATIONS, get_parametrization
+from ratfit.brdf.parametrizations import find_parametrization, get_parametrization
 from ratfit.core.bases import PolynomialSpace
 from ratfit.core.qp import ArnoldiSystem
 from ratfit.core.rational import RationalFunction
@@ -428,17 +428,18 @@ class BRDFFitter(RationalFitter):
         of valid direction pairs (:func:`ratfit.brdf.validity.check_validity`)."""
         from ratfit.brdf.validity import check_validity
 
-        known = get_parametrization_or_none(self.parametrization) is not None
+        known = find_parametrization(self.parametrization) is not None
         # n-D with a known parametrization: the valid direction pairs are checked
         # below, so q's sign on the whole coordinate box (mostly invalid pairs) is not.
-        ver = verify(rf, seg, channel=j, box_check=not known or rf.space.dim == 1)
+        box_checked = not known or rf.space.dim == 1
+        ver = verify(rf, seg, channel=j, box_check=box_checked)
         if ver.n_violations or not np.isfinite(ver.linf):
             return ver
         if rf.space.dim == 1 and ver.poles_in_domain:
             return ver
         chk = check_validity(rf, self.parametrization, keep=getattr(self, "_keep", None))
-        if chk is None:
-            return verify(rf, seg, channel=j)  # the plain box check decides
+        if chk is None:  # nothing says what is valid: the plain box check decides
+            return ver if box_checked else verify(rf, seg, channel=j)
         if not hasattr(self, "_checks"):
             self._checks, self._extra = {}, []
         self._checks[id(rf)] = chk
@@ -451,10 +452,6 @@ class BRDFFitter(RationalFitter):
               and not ver.denominator_sign_changes)
         return replace(ver, verified=ok,
                        denominator_sign_changes=ver.denominator_sign_changes or chk.min_q <= 0)
-
-
-def get_parametrization_or_none(name: str):
-    return PARAMETRIZATIONS.get(str(name).upper())
 
 
 class _BRDFSystems:
@@ -496,9 +493,7 @@ def valid_grid(param: str, domain: ArrayLike, points: int = 200_000) -> Array | 
 
     None when the parametrization is unknown (then the whole box counts).
     """
-    from ratfit.brdf.parametrizations import PARAMETRIZATIONS
-
-    p = PARAMETRIZATIONS.get(str(param).upper())
+    p = find_parametrization(param)
     if p is None:
         return None
     dom = np.asarray(domain, dtype=float)

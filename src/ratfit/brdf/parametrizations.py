@@ -31,6 +31,7 @@ __all__ = [
     "check_dirs",
     "convert",
     "determines",
+    "find_parametrization",
     "get_parametrization",
 ]
 
@@ -506,17 +507,21 @@ _DETERMINES = {
 }
 
 
-def get_parametrization(name: str | Parametrization) -> Parametrization:
-    """The parametrization called ``name`` (ALTA spelling, case-insensitive)."""
+def find_parametrization(name: str | Parametrization) -> Parametrization | None:
+    """The parametrization called ``name`` (ALTA spelling, case-insensitive), or None."""
     if isinstance(name, Parametrization):
         return name
-    key = str(name).strip().upper()
-    try:
-        return PARAMETRIZATIONS[key]
-    except KeyError:
+    return PARAMETRIZATIONS.get(str(name).strip().upper())
+
+
+def get_parametrization(name: str | Parametrization) -> Parametrization:
+    """The parametrization called ``name``; an unknown name is an InputError."""
+    p = find_parametrization(name)
+    if p is None:
         raise InputError(
             f"unknown parametrization {name!r}; valid names: {', '.join(PARAMETRIZATIONS)}"
-        ) from None
+        )
+    return p
 
 
 def determines(src: str | Parametrization, dst: str | Parametrization) -> bool:

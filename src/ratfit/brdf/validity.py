@@ -29,7 +29,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from ratfit.brdf.parametrizations import PARAMETRIZATIONS, Parametrization
+from ratfit.brdf.parametrizations import Parametrization, find_parametrization
 from ratfit.core.rational import RationalFunction
 
 __all__ = ["ValidityCheck", "angle_grid", "check_validity", "configurations"]
@@ -38,10 +38,6 @@ Array = NDArray[np.float64]
 _HALF = 0.5 * np.pi
 # Directions exactly at the horizon are limits of valid ones; stay a hair above.
 _TOP = _HALF - 1e-9
-
-
-def _param(name: str) -> Parametrization | None:
-    return PARAMETRIZATIONS.get(str(name).upper())
 
 
 def _n_angles(p: Parametrization) -> int:
@@ -97,7 +93,7 @@ def configurations(param: str, domain: ArrayLike, points: int = 60_000,
 
     None when the parametrization is unknown (then nothing says what is valid).
     """
-    p = _param(param)
+    p = find_parametrization(param)
     if p is None:
         return None
     dom = np.asarray(domain, dtype=float).reshape(-1, 2)
@@ -137,7 +133,7 @@ def check_validity(rf: RationalFunction, param: str, domain: ArrayLike | None = 
     1e-4 of the grid step. None when the parametrization is unknown.
     ``keep``: the coordinates the fit uses (constant ones dropped), in order.
     """
-    p = _param(param)
+    p = find_parametrization(param)
     if p is None:
         return None
     cols = np.arange(p.dim) if keep is None else np.asarray(keep, dtype=np.int64)

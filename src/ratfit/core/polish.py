@@ -115,15 +115,11 @@ def polish_fit(
     active = np.zeros(all_rows.shape[0], dtype=bool)
     active[order[: min(start_rows, order.size)]] = True
     batch = max(200, 8 * k)
-    c = None
+    e = mean_q @ Rinv  # mean q = 1 as two inequalities (the adapters take A z >= b only)
     for _ in range(max_rounds):
         idx = np.flatnonzero(active)
-        A = all_rows[idx] @ Rinv
-        b = all_h[idx]
-        # mean q = 1 as two inequalities (the adapters take A z >= b only)
-        e = mean_q @ Rinv
-        A = np.vstack([A, e, -e])
-        b = np.concatenate([b, [1.0, -1.0]])
+        A = np.vstack([all_rows[idx] @ Rinv, e, -e])
+        b = np.concatenate([all_h[idx], [1.0, -1.0]])
         sol = solve_qp(A, b, solver)
         if sol.status != "optimal" or sol.x is None:
             return None
@@ -134,7 +130,5 @@ def polish_fit(
             break
         active[bad[np.argsort(res[bad])[:batch]]] = True
     else:
-        return None
-    if c is None:
         return None
     return RationalFunction(rf.space, c[:n], c[n:], p_basis=rf.p_basis, q_basis=rf.q_basis)
