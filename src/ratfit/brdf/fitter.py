@@ -41,7 +41,8 @@ from ratfit.io.fitfile import SavedFit, fit_document, load_fit, save_fit
 
 __all__ = ["BRDF_SOLVER", "DEFAULT_DT", "DEFAULT_FLOOR_REL", "BRDFFit", "BRDFFitter",
            "brdf_metrics", "brdf_segments", "cos_theta_l", "default_dt", "fit_brdf",
-           "load_brdf_fit", "nonnegative_segments", "prepare_values", "save_brdf_fit",
+           "load_brdf_fit", "nonnegative_segments", "prepare_values", "resolve_widths",
+           "save_brdf_fit",
            "subset_status", "valid_grid"]
 
 Array = NDArray[np.float64]
@@ -116,6 +117,20 @@ def default_dt(x: ArrayLike, y: ArrayLike, floor_rel: float = DEFAULT_FLOOR_REL,
     return float(min(max(DEFAULT_DT, np.ceil(110.0 * float(need.max())) / 100.0), 0.9))
 
 
+def resolve_widths(ds: Dataset, dt: float | None, abs_width: float | None,
+                   floor_rel: float | None, *, cosine: bool = False,
+                   clamp: float | None = None
+                   ) -> tuple[float | None, float | None, float | None, bool]:
+    """(dt, abs_width, floor_rel, defaulted): the widths as given, or, when none is
+    given and the file has no intervals of its own, :func:`default_dt` with a floor
+    of :data:`DEFAULT_FLOOR_REL` (``defaulted`` True)."""
+    if dt is None and abs_width is None and floor_rel is None and (
+            ds.lo is None or ds.hi is None):
+        y = prepare_values(ds, cosine=cosine, clamp=clamp)
+        return default_dt(ds.x, y), None, DEFAULT_FLOOR_REL, True
+    return dt, abs_width, floor_rel, False
+
+
 def brdf_segments(
     ds: Dataset,
     *,
@@ -131,13 +146,13 @@ def brdf_segments(
     Without any width the file's own intervals (ALTA #VS 1/2) are used, and
     without those :data:`DEFAULT_DT` with a floor of :data:`DEFAULT_FLOOR_REL`.
     """
+    dt, abs_width, floor_rel, _ = resolve_widths(ds, dt, abs_width, floor_rel,
+                                                 cosine=cosine, clamp=clamp)
     if dt is None and abs_width is None and floor_rel is None:
-        if ds.lo is not None and ds.hi is not None:
-            if cosine or clamp is not None:
-                raise InputError("cosine weighting and clamping need --dt/--abs-width "
-                                 "segments, not the file's own intervals")
-            return ds.segments()
-        dt, floor_rel = default_dt(ds.x, prepare_values(ds)), DEFAULT_FLOOR_REL
+        if cosine or clamp is not None:
+            raise InputError("cosine weighting and clamping need --dt/--abs-width "
+                             "segments, not the file's own intervals")
+        return ds.segments()
     y = prepare_values(ds, cosine=cosine, clamp=clamp)
     floor_rel = check_width(floor_rel, "floor_rel")
     w = None
@@ -163,12 +178,8 @@ def fit_brdf(ds: Dataset, *, dt: float | None = None, abs_width: float | None = 
     from ratfit.core.columns import constant_axes
 
     full = ds
-    own = ds.lo is not None and ds.hi is not None
-    if dt is None and abs_width is None and floor_rel is None and not own:
-        dt = default_dt(ds.x, prepare_values(ds, cosine=cosine, clamp=clamp))
-        floor_rel, default_widths = DEFAULT_FLOOR_REL, True
-    else:
-        default_widths = False
+    dt, abs_width, floor_rel, default_widths = resolve_widths(
+        ds, dt, abs_width, floor_rel, cosine=cosine, clamp=clamp)
     dropped = constant_axes(ds.x) if ds.n_points > 1 else np.arange(0)
     keep = np.setdiff1d(np.arange(ds.x.shape[1]), dropped)
     if dropped.size:

@@ -9,7 +9,7 @@ from typing import Any
 import click
 import numpy as np
 
-from ratfit.brdf.fitter import BRDF_SOLVER, DEFAULT_DT, DEFAULT_FLOOR_REL, default_dt
+from ratfit.brdf.fitter import BRDF_SOLVER, DEFAULT_DT
 from ratfit.cli.main import (
     EXIT_NO_FIT,
     _fit_json,
@@ -105,15 +105,6 @@ def brdf_fit(input_path: Path, output: Path | None, fmt: str | None, param: str 
         if not as_json:
             click.echo(f"parametrization: {param} (chosen for the file's {own}; "
                        "--param overrides)", err=True)
-    if dt is None and abs_width is None and floor_rel is None and ds.lo is None \
-            and not as_json:
-        d = default_dt(ds.x, ds.y) if ds.y is not None else DEFAULT_DT
-        why = "" if d == DEFAULT_DT else (
-            f", widened from {DEFAULT_DT:g} so that samples measured at nearly the same "
-            "point have overlapping segments")
-        click.echo(f"segments: y +- {d:.3g} y with a floor of {DEFAULT_FLOOR_REL:g} x the "
-                   f"channel's largest value (default{why}; --dt, --abs-width, --floor-rel "
-                   "override)", err=True)
     cb, stop = _progress(not as_json)
     try:
         fitter, seg, meta = fit_brdf(
@@ -122,6 +113,14 @@ def brdf_fit(input_path: Path, output: Path | None, fmt: str | None, param: str 
         )
     finally:
         stop()
+    widths = meta["segments"]
+    if widths["default"] and not as_json:
+        why = "" if widths["dt"] == DEFAULT_DT else (
+            f", widened from {DEFAULT_DT:g} so that samples measured at nearly the same "
+            "point have overlapping segments")
+        click.echo(f"segments: y +- {widths['dt']:.3g} y with a floor of "
+                   f"{widths['floor_rel']:g} x the channel's largest value (default{why}; "
+                   "--dt, --abs-width, --floor-rel override)", err=True)
     results = fitter.results_
     ok = all(r.success for r in results)
     metrics: dict[str, Any] | None = None
