@@ -41,6 +41,16 @@ def run_cli(*args: object) -> Result:
     return CliRunner().invoke(main, [str(a) for a in args])
 
 
+def write_file(folder: Path, name: str, content: str | bytes) -> Path:
+    """``content`` (text or bytes) written to ``folder / name``; returns the path."""
+    path = folder / name
+    if isinstance(content, bytes):
+        path.write_bytes(content)
+    else:
+        path.write_text(content)
+    return path
+
+
 def one_error_line(result: Result, *patterns: str) -> str:
     """Bad input: exit 2, nothing on stdout, one ``error:`` line on stderr naming it.
 

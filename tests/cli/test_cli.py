@@ -28,7 +28,7 @@ from typing import Any
 import numpy as np
 import pytest
 from click.testing import Result
-from conftest import one_error_line, run_cli
+from conftest import one_error_line, run_cli, write_file
 
 from ratfit.core.solvers import available_solvers
 from ratfit.io.data import read_data, write_alta, write_csv
@@ -436,12 +436,7 @@ class Ctx:
         return self.request.getfixturevalue("shared_data")
 
     def write(self, name: str, content: str | bytes) -> Path:
-        path = self.tmp / name
-        if isinstance(content, bytes):
-            path.write_bytes(content)
-        else:
-            path.write_text(content)
-        return path
+        return write_file(self.tmp, name, content)
 
     def good_csv(self) -> Path:
         x = np.linspace(0.0, 1.0, 30)

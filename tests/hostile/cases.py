@@ -17,6 +17,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from conftest import write_file
+
 Build = Callable[["Ctx"], tuple[list[Any], list[Path]]]
 
 
@@ -37,12 +39,7 @@ class Ctx:
     csv1d: Path  # good 1-D data for that fit
 
     def write(self, name: str, content: str | bytes) -> Path:
-        p = self.tmp / name
-        if isinstance(content, bytes):
-            p.write_bytes(content)
-        else:
-            p.write_text(content)
-        return p
+        return write_file(self.tmp, name, content)
 
     @property
     def out(self) -> Path:
