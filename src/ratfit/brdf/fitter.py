@@ -18,6 +18,7 @@ so :func:`load_brdf_fit` gives back a function of directions.
 from __future__ import annotations
 
 import os
+import time
 from dataclasses import dataclass, replace
 from typing import Any
 
@@ -279,7 +280,9 @@ class BRDFFitter(RationalFitter):
         (:func:`ratfit.core.polish.polish_fit`), when that fit verifies
         (segments and the physical check) and has the smaller RMSE. Same size,
         same guarantees, errors several times smaller than the search's
-        minimum-norm fit, which runs along the segments' edges.
+        minimum-norm fit, which runs along the segments' edges. With a
+        ``time_limit``, each channel's polish gets a quarter of it and keeps the
+        search's fit (saying so in the message) when that runs out.
     solver : str, default "daqp"
         As for RationalFitter, but DAQP (quadprog when DAQP is not installed).
     physical : bool, default True
@@ -349,9 +352,16 @@ class BRDFFitter(RationalFitter):
         pts = self._configurations(rf.space.domain) if self.physical else None
         if pts is not None and self._extra:
             pts = np.concatenate([pts, *self._extra])
+        deadline = self._polish_deadline()
         for _ in range(rounds):
-            cand = polish_fit(rf, seg, j, positive_at=pts, solver=self.solver)
+            if deadline is not None and time.perf_counter() > deadline:
+                self._polish_timed_out = True
+                return None
+            cand = polish_fit(rf, seg, j, positive_at=pts, solver=self.solver,
+                              deadline=deadline)
             if cand is None:
+                if deadline is not None and time.perf_counter() > deadline:
+                    self._polish_timed_out = True
                 return None
             ver = self._verify(cand, seg, j)
             if ver.verified:
@@ -361,6 +371,13 @@ class BRDFFitter(RationalFitter):
                 return None
             pts = np.concatenate([pts, chk.bad_points[:500]])
         return None
+
+    def _polish_deadline(self) -> float | None:
+        """A polish (or a repair) may take a quarter of the per-channel time limit:
+        it improves a fit already found, so it must not hold a time-limited run."""
+        if self.time_limit is None:
+            return None
+        return time.perf_counter() + 0.25 * float(self.time_limit)
 
     def _repair(self, rf: RationalFunction, seg: Segments,
                 j: int) -> tuple[RationalFunction, Verification] | None:
@@ -382,8 +399,12 @@ class BRDFFitter(RationalFitter):
                 return float(np.sqrt(np.mean((r(seg.x) - y) ** 2)))
 
         before = score(rf)
+        self._polish_timed_out = False
         out = self._polish_rounds(rf, seg, j)
         if out is None:
+            if self._polish_timed_out:
+                return replace(res, message=f"{res.message}; least-squares polish "
+                                            "stopped at the time limit (fit unpolished)")
             return res
         cand, ver = out
         after = score(cand)

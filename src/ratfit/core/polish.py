@@ -19,6 +19,8 @@ like any other candidate and keeps the starting fit if it is not better.
 
 from __future__ import annotations
 
+import time
+
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
@@ -48,14 +50,21 @@ def polish_fit(
     solver: str = "daqp",
     max_rounds: int = 30,
     start_rows: int = 4000,
+    deadline: float | None = None,
 ) -> RationalFunction | None:
     """The least-squares fit of the same size as ``rf`` whose values stay in the
     inner part (a fraction ``tau`` of each width off both ends) of every segment.
 
+    When that inner part is empty (at the minimal size the feasible set can be
+    thinner than 4 % of a width) the cut-off drops to ``tau / 4``, then
+    ``tau / 20``.
+
     ``weights`` (N,) weight each point's error (default 1: plain RMSE).
     ``positive_at`` (G, d) are points (original coordinates) where q > 0 and
     p >= 0 are also required. Returns None when the QP fails; the result is
-    a candidate, to be verified by the caller.
+    a candidate, to be verified by the caller. ``deadline`` (a
+    ``time.perf_counter()`` value) is checked between active-set rounds: past
+    it the polish gives up (None) rather than hold a time-limited run.
     """
     x = seg.x
     lo = seg.lo[:, channel]
@@ -83,6 +92,26 @@ def polish_fit(
     except np.linalg.LinAlgError:
         return None
     Rinv = np.linalg.solve(R, np.eye(k))
+    # The band's inner part may be empty at the minimal size (the search's own
+    # margin can be 1e-3 of a width): a narrower cut-off before giving up.
+    for cut in (tau, tau / 4, tau / 20):
+        c = _solve_band(P, Q, lo, hi, q0, Rinv, cut, positive_at, rf, solver,
+                        max_rounds, start_rows, deadline)
+        if c is not None or (deadline is not None and time.perf_counter() > deadline):
+            break
+    if c is None:
+        return None
+    return RationalFunction(rf.space, c[:n], c[n:], p_basis=rf.p_basis, q_basis=rf.q_basis)
+
+
+def _solve_band(P: Array, Q: Array, lo: Array, hi: Array, q0: Array, Rinv: Array,
+                tau: float, positive_at: ArrayLike | None, rf: RationalFunction,
+                solver: str, max_rounds: int, start_rows: int,
+                deadline: float | None) -> Array | None:
+    """The active-set QP of :func:`polish_fit` for one cut-off ``tau``: its
+    coefficients (a, b), or None when infeasible, unsolved or out of time."""
+    n, m = P.shape[1], Q.shape[1]
+    k = n + m
     width = hi - lo
     lo_in = lo + tau * width
     hi_in = hi - tau * width
@@ -117,6 +146,8 @@ def polish_fit(
     batch = max(200, 8 * k)
     e = mean_q @ Rinv  # mean q = 1 as two inequalities (the adapters take A z >= b only)
     for _ in range(max_rounds):
+        if deadline is not None and time.perf_counter() > deadline:
+            return None
         idx = np.flatnonzero(active)
         A = np.vstack([all_rows[idx] @ Rinv, e, -e])
         b = np.concatenate([all_h[idx], [1.0, -1.0]])
@@ -131,4 +162,4 @@ def polish_fit(
         active[bad[np.argsort(res[bad])[:batch]]] = True
     else:
         return None
-    return RationalFunction(rf.space, c[:n], c[n:], p_basis=rf.p_basis, q_basis=rf.q_basis)
+    return c
