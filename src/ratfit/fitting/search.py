@@ -832,6 +832,8 @@ class SearchEngine:
             else:
                 status = 1
                 span = f"total {lo}" if lo == hi else f"totals {lo}..{hi}"
+                # what was searched, not more: the walk tests some splits of a total
+                span = f"the {len(self.cache)} (n, m) split(s) tested with {span}"
                 from ratfit.fitting.certificate import search_proof
 
                 limit = self.f.time_limit
@@ -841,16 +843,16 @@ class SearchEngine:
                     msg = (
                         f"{STATUS_MESSAGES[1]}: no rational of this size fits these "
                         f"segments (certificate: "
-                        f"{proof['statement']}); every split of {span} was infeasible or failed"
+                        f"{proof['statement']}); none of {span} gave a verified fit"
                     )
                 elif proof is not None and proof["numerical"]:
                     msg = (
-                        f"{STATUS_MESSAGES[1]}: every split of {span} was infeasible or failed "
+                        f"{STATUS_MESSAGES[1]}: none of {span} gave a verified fit "
                         f"({proof['statement']})"
                     )
                 else:
                     msg = (
-                        f"{STATUS_MESSAGES[1]}: every split of {span} was infeasible or failed "
+                        f"{STATUS_MESSAGES[1]}: none of {span} gave a verified fit "
                         f"(largest tried: n={att.n}, m={att.m}); solver failed or reported "
                         "infeasible without a checked certificate"
                     )
