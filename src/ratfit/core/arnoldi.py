@@ -90,19 +90,22 @@ class ArnoldiBasis:
             )
         idx = space.indices(count)
         parents, dims = _parents(idx)
-        Q = np.empty((npts, count))
+        # Q is built as (count, npts) rows (contiguous columns of the result) and
+        # returned transposed.
+        tt = np.ascontiguousarray(t.T)
+        Q = np.empty((count, npts))
         H = np.zeros((count, count))
         nrm = float(np.linalg.norm(w))
         if not np.isfinite(nrm) or nrm == 0:
             raise InputError("Arnoldi weights must be finite and not all zero")
         H[0, 0] = nrm
-        Q[:, 0] = w / nrm
+        Q[0] = w / nrm
         for i in range(1, count):
-            v = t[:, dims[i]] * Q[:, parents[i]]
-            h = Q[:, :i].T @ v
-            v -= Q[:, :i] @ h
-            h2 = Q[:, :i].T @ v  # second pass: orthogonal to working precision
-            v -= Q[:, :i] @ h2
+            v = tt[dims[i]] * Q[parents[i]]
+            h = Q[:i] @ v
+            v -= h @ Q[:i]
+            h2 = Q[:i] @ v  # second pass: orthogonal to working precision
+            v -= h2 @ Q[:i]
             h += h2
             r = float(np.linalg.norm(v))
             if not r > 1e-13 * max(1.0, float(np.abs(h).max(initial=0.0))):
@@ -112,8 +115,8 @@ class ArnoldiBasis:
                 )
             H[:i, i] = h
             H[i, i] = r
-            Q[:, i] = v / r
-        return cls(space, H, parents, dims), Q
+            Q[i] = v / r
+        return cls(space, H, parents, dims), Q.T
 
     # -- evaluation ---------------------------------------------------------------------
     def design(self, x: ArrayLike, count: int | None = None, *, window: bool = False) -> Array:
@@ -124,15 +127,21 @@ class ArnoldiBasis:
         t = np.asarray(x, dtype=float) if window else self.space.to_window(x)
         if t.ndim == 1:
             t = t[:, None]
-        out = np.empty((t.shape[0], k))
+        # Built as (k, N) rows and returned transposed (Fortran order): every step
+        # reads whole contiguous columns, 4x faster than strided (N, k) columns
+        # on 262 144 points.
+        tt = np.ascontiguousarray(t.T)
+        out = np.empty((k, t.shape[0]))
         if k == 0:
-            return out
+            return out.T
         H = self.H
-        out[:, 0] = 1.0 / H[0, 0]
+        out[0] = 1.0 / H[0, 0]
         for i in range(1, k):
-            v = t[:, self.dims[i]] * out[:, self.parents[i]] - out[:, :i] @ H[:i, i]
-            out[:, i] = v / H[i, i]
-        return out
+            v = tt[self.dims[i]] * out[self.parents[i]]
+            v -= H[:i, i] @ out[:i]
+            v /= H[i, i]
+            out[i] = v
+        return out.T
 
     def evaluate(self, x: ArrayLike, coef: ArrayLike, *, window: bool = False) -> Array:
         c = np.asarray(coef, dtype=float)
