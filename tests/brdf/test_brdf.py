@@ -276,7 +276,7 @@ def test_cli_fit_eval_round_trip(tmp_path: Path) -> None:
                             "--abs-width", "1e-4", "--max-total", "30", "--json",
                             "-o", str(fit)])
     assert res.exit_code == 0, res.output
-    doc = json.loads(res.output)
+    doc = json.loads(res.stdout)
     plain = run.invoke(main, ["fit", str(data), "--dt", "0.05", "--max-total", "3", "--json"])
     assert set(json.loads(plain.output)) <= set(doc)  # the same keys as `ratfit fit --json`
     assert doc["parametrization"] == "COS_TH_TD_PD" and len(doc["channels"]) == 2
@@ -305,7 +305,7 @@ def test_cli_fit_eval_round_trip(tmp_path: Path) -> None:
     c = get_parametrization("COS_TH_TD_PD").from_dirs(L, V)
     assert np.allclose(cw.eval_coords(c) * L[:, 2:], fitted.eval_coords(c), rtol=1e-12)
     res = run.invoke(main, ["brdf", "eval", str(fit), "--data", str(data)])
-    m = json.loads(res.output)["metrics"]
+    m = json.loads(res.stdout)["metrics"]
     assert m["y0"]["rmse"] <= 0.1 * ds.y[:, 0].max() and "cos_rmse" in m["y0"]
 
 

@@ -24,3 +24,27 @@ def test_progress_lines_while_nothing_reports(monkeypatch, capsys) -> None:
     assert "tested 1 splits; last (n=3, m=2): infeasible" in lines[-1]
     time.sleep(0.5)  # stopped: no more lines
     assert capsys.readouterr().err == ""
+
+
+def test_json_runs_show_progress_on_stderr_and_keep_stdout_one_object(
+        monkeypatch, tmp_path) -> None:
+    """--json puts the result on stdout; a long run still tells stderr it moves."""
+    import json
+
+    import numpy as np
+    from conftest import run_cli, write_file
+
+    monkeypatch.setattr(cli_main, "PROGRESS_EVERY", 0.01)
+    x = np.linspace(0.0, 3.0, 300)
+    data = write_file(tmp_path, "d.csv", "x,y\n" + "".join(
+        f"{a:.6f},{b:.9f}\n" for a, b in zip(x, np.exp(x) / (1.5 + np.sin(3 * x)), strict=True)))
+    r = run_cli("fit", data, "--dt", "0.01", "-o", tmp_path / "f.json", "--json")
+    assert r.exit_code == 0, r.output
+    doc = json.loads(r.stdout)
+    assert doc["success"] is True and doc["verified"] is True
+    import re
+
+    lines = [ln for ln in r.stderr.splitlines() if ln.startswith("ratfit:")]
+    assert lines and all(re.fullmatch(r"ratfit: \d+ s, tested \d+ splits(; last .*)?", ln)
+                         for ln in lines), lines[:3]
+    assert max(int(ln.split("tested ")[1].split()[0]) for ln in lines) <= doc["qp_solves"]

@@ -121,7 +121,7 @@ def test_cli_plot_and_report(dense, tmp_path):
     r = runner.invoke(main, ["brdf", "compare", str(data), str(fit), "--model", "lambert+blinn",
                              "--json"])
     assert r.exit_code == 0, r.output
-    rows = json.loads(r.output)["rows"]
+    rows = json.loads(r.stdout)["rows"]
     assert [row["name"] for row in rows] == ["fit.json", "lambert+blinn"]
     assert rows[1]["rmse"] < 1e-6 < rows[0]["rmse"]  # the true model fits exactly
     # bad input: one message, exit 2, no file

@@ -105,7 +105,7 @@ def brdf_fit(input_path: Path, output: Path | None, fmt: str | None, param: str 
         if not as_json:
             click.echo(f"parametrization: {param} (chosen for the file's {own}; "
                        "--param overrides)", err=True)
-    cb, stop = _progress(not as_json)
+    cb, stop = _progress(True)  # stderr: JSON on stdout stays clean
     try:
         fitter, seg, meta = fit_brdf(
             ds, dt=dt, abs_width=abs_width, floor_rel=floor_rel, cosine=cosine, clamp=clamp,

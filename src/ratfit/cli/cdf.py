@@ -165,7 +165,7 @@ def cdf_cmd(input_path: Path, output: Path | None, source: str | None, fmt: str 
                         domain)
     except RatfitError as exc:
         raise _with_source(exc, input_path) from None
-    cb, stop = _progress(not as_json)
+    cb, stop = _progress(True)  # stderr: JSON on stdout stays clean
     try:
         fitter = MonotoneFitter(form=form, grid=grid, callback=cb, **params).fit(seg)
     finally:

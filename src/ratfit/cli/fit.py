@@ -84,7 +84,7 @@ def fit_cmd(input_path: Path, output: Path | None, fmt: str | None, dt: float | 
         seg = Segments(seg.x, seg.lo[:, pick], seg.hi[:, pick],
                        None if seg.y is None else seg.y[:, pick],
                        tuple(seg.names[c] for c in pick))
-    cb, stop = _progress(not as_json)
+    cb, stop = _progress(True)  # stderr: JSON on stdout stays clean
     shared_fit = None
     try:
         if shared:
