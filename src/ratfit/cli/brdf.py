@@ -42,7 +42,9 @@ _ISOTROPIC_DEFAULT = {"CARTESIAN": "ISOTROPIC_TV_TL_DPHI"}
               help="Input format (default: from the file).")
 @click.option("--param", "param", default=None,
               help="Parametrization to fit in (ALTA names, e.g. RUSIN_TH_TD_PD, COS_TH_TD_PD, "
-                   "STARK_2D); default: the file's own.")
+                   "STARK_2D); default: the file's own (ISOTROPIC_TV_TL_DPHI for Cartesian "
+                   "pairs), and for isotropic angles also RUSIN_TH_TD_PD, keeping the "
+                   "smaller verified fit.")
 @click.option("--dt", type=float,
               help="Relative segment width: [(1-dt) y, (1+dt) y]. Without --dt, --abs-width "
                    "and --floor-rel: the file's own intervals, else --dt 0.05 --floor-rel "
@@ -75,9 +77,10 @@ def brdf_fit(input_path: Path, output: Path | None, fmt: str | None, param: str 
              **options: Any) -> None:
     """Fit each channel of a measured BRDF with a verified rational function."""
     from ratfit.brdf.fitter import (
+        alternative_parametrizations,
         brdf_metrics,
         cos_theta_l,
-        fit_brdf,
+        fit_brdf_auto,
         save_brdf_fit,
         subset_status,
     )
@@ -90,6 +93,7 @@ def brdf_fit(input_path: Path, output: Path | None, fmt: str | None, param: str 
         raise click.UsageError("give both --n and --m, or neither")
     if max_points is not None and max_points < 2:
         raise click.UsageError("--max-points must be >= 2")
+    user_param = param is not None
     if param is not None:
         param = get_parametrization(param).name
     ds = brdf_dataset(input_path, param, fmt=fmt, channels=_split_channels(channels) or None,
@@ -102,17 +106,33 @@ def brdf_fit(input_path: Path, output: Path | None, fmt: str | None, param: str 
         ds = brdf_dataset(input_path, param, fmt=fmt,
                           channels=_split_channels(channels) or None, color=color,
                           max_points=max_points)
-        if not as_json:
-            click.echo(f"parametrization: {param} (chosen for the file's {own}; "
-                       "--param overrides)", err=True)
+    # No --param and no fixed size: also try the half-vector frame, keep the smaller fit.
+    others = () if user_param or params["n"] is not None or params["total"] is not None \
+        else alternative_parametrizations(str(ds.meta.get("param_in")))
+    datasets = [ds] + [brdf_dataset(input_path, other, fmt=fmt,
+                                    channels=_split_channels(channels) or None, color=color,
+                                    max_points=max_points) for other in others]
     cb, stop = _progress(True)  # stderr: JSON on stdout stays clean
     try:
-        fitter, seg, meta = fit_brdf(
-            ds, dt=dt, abs_width=abs_width, floor_rel=floor_rel, cosine=cosine, clamp=clamp,
-            positive_q=positive_q, polish=not no_polish, callback=cb, **params,
+        fitter, seg, meta = fit_brdf_auto(
+            datasets, dt=dt, abs_width=abs_width, floor_rel=floor_rel, cosine=cosine,
+            clamp=clamp, positive_q=positive_q, polish=not no_polish, callback=cb, **params,
         )
     finally:
         stop()
+    ds = next(d for d in datasets if d.meta.get("param_in") == meta["parametrization"])
+    if len(datasets) == 1 and own in _ISOTROPIC_DEFAULT and not user_param and not as_json:
+        click.echo(f"parametrization: {param} (chosen for the file's {own}; "
+                   "--param overrides)", err=True)
+    if len(datasets) > 1 and not as_json:
+        tried = "; ".join(
+            f"{c['parametrization']}: " + (f"{c['coefficients']} coefficients"
+                                           if c["verified"] else "no verified fit")
+            + (f" (searched up to {c['searched_up_to']} per channel)"
+               if c["searched_up_to"] and not c["verified"] else "")
+            for c in meta["candidates"])
+        click.echo(f"parametrization: {meta['parametrization']} ({tried}; "
+                   "the smaller verified fit is kept; --param fixes one)", err=True)
     widths = meta["segments"]
     if widths["default"] and not as_json:
         why = "" if widths["dt"] == DEFAULT_DT else (
@@ -145,6 +165,7 @@ def brdf_fit(input_path: Path, output: Path | None, fmt: str | None, param: str 
     if as_json:
         doc = _fit_json(results, output if ok else None)
         doc["parametrization"] = meta["parametrization"]
+        doc["parametrization_candidates"] = meta["candidates"]
         doc["n_points"] = seg.n_points
         doc["verified_on"] = meta["verified_on"]
         if subset:
