@@ -69,7 +69,7 @@ def test_search_status_one_carries_a_checked_certificate(seed_seg: Segments) -> 
 
 
 def test_numerical_failure_is_not_called_infeasible(seed_seg: Segments, monkeypatch) -> None:
-    def broken(A, b, solver):
+    def broken(A, b, solver, time_limit=None):
         return QPSolution("error", None, "simulated breakdown", solver)
 
     monkeypatch.setattr(qp, "solve_qp", broken)

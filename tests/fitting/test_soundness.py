@@ -172,6 +172,34 @@ def test_time_limit_stops_a_fruitless_search_without_a_claim() -> None:
     assert secs < 10.0
 
 
+def test_time_limit_stops_inside_one_split(monkeypatch) -> None:
+    """The deadline is checked between the active-set rounds of one split, not only
+    between splits: a single long split (here: a solver taking 0.2 s a call) stops."""
+    import time
+
+    from ratfit.core import solvers
+
+    calls = []
+
+    def slow(A, b):
+        calls.append(A.shape)
+        time.sleep(0.2)
+        return solvers._quadprog(A, b)
+
+    monkeypatch.setitem(solvers.SOLVERS, "slow-quadprog", ("quadprog", slow))
+    x = np.linspace(-1.0, 1.0, 20000)  # large: an active set, several rounds
+    seg = Segments.from_relative(x, np.exp(np.sin(3 * x)) / (1.2 + x), 1e-2)
+    free = RationalFitter(n=9, m=8, solver="slow-quadprog", time_limit=None).fit(seg).result_
+    assert free.success and len(calls) >= 4  # the split needs that many rounds
+    calls.clear()
+    res = RationalFitter(n=9, m=8, solver="slow-quadprog", time_limit=0.3).fit(seg).result_
+    assert len(calls) <= 2  # rounds start before 0.3 s only
+    assert not res.success and res.status == 1
+    assert "time limit of 0.3 s reached" in res.message
+    assert "not a proof that none exists" in res.message
+    assert "no rational of this size fits" not in res.message
+
+
 def test_ctrl_c_exits_130_without_a_fit_file(tmp_path, monkeypatch) -> None:
     from click.testing import CliRunner
 

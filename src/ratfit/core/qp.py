@@ -194,6 +194,7 @@ class Attempt:
     qp_solves: int = 0
     pole_cuts: int = 0  # q > 0 rows generated (0: the plain QP's solution was pole-free)
     seconds: float = 0.0
+    timed_out: bool = False  # stopped at the search's deadline: decides nothing
     messages: list[str] = field(default_factory=list)
     active_rows: NDArray[np.int64] | None = field(default=None, repr=False)
 
@@ -222,6 +223,7 @@ def solve_fixed(
     active_set: bool | None = None,
     max_rounds: int = 100,
     warm_rows: NDArray[np.int64] | None = None,
+    deadline: float | None = None,
 ) -> Attempt:
     """Solve P(n, m) on ``system``; the returned c satisfies every row of A > 0.
 
@@ -230,6 +232,10 @@ def solve_fixed(
     split to the next). Any start gives the same answer; a good one saves rounds.
     Systems with a ``screen`` method (large data) are checked on a cheap subset
     of rows before each full pass over every row.
+
+    ``deadline`` (a ``time.perf_counter()`` value): no round starts after it and
+    DAQP gets the time left; the attempt is then "failed" with ``timed_out``
+    set (a split cut short proves nothing).
     """
     t0 = time.perf_counter()
     system.prepare(n, m)
@@ -249,9 +255,16 @@ def solve_fixed(
     norms_all: Array | None = None
     batch = max(64, 4 * k)
     for _ in range(max_rounds):
+        if deadline is not None and time.perf_counter() >= deadline:
+            _out_of_time(att)
+            break
         A = system.rows(n, m, idx)
         b = delta * np.linalg.norm(A, axis=1)  # = row_norms at idx, without a full pass
-        sol = solve_qp(A, b, solver)
+        sol = solve_qp(A, b, solver, time_limit=None if deadline is None else
+                       max(deadline - time.perf_counter(), 1e-3))
+        if deadline is not None and sol.status == "error" and time.perf_counter() >= deadline:
+            _out_of_time(att)
+            break
         att.qp_solves += 1
         att.solver_status = sol.status
         c = sol.x if sol.status == "optimal" and _positive(A @ sol.x) else None
@@ -333,6 +346,11 @@ def solve_fixed(
     return att
 
 
+def _out_of_time(att: Attempt) -> None:
+    att.status, att.c, att.timed_out = "failed", None, True
+    att.messages.append("time limit reached inside this split")
+
+
 def _delta_from(s: Array, shape: tuple[int, int]) -> tuple[float, float, float]:
     """(delta, sigma_min, sigma_max) from the nonzero singular values: with
     dependent columns (few distinct values per axis) the QP still only moves in
@@ -372,7 +390,11 @@ def solve_pole_free(
         return att, system
     guarded = PositiveDenominator(system, n, m)
     spent, secs = att.qp_solves, att.seconds
+    deadline = solve_kw.get("deadline")
     for _ in range(max_rounds):
+        if deadline is not None and time.perf_counter() >= deadline:
+            _out_of_time(att)
+            return att, guarded
         if guarded.add(z) == 0:
             # q is not positive at points that already have rows: the solver's point
             # (a cross check's, which ignores margins) does not meet them. No progress.
@@ -381,7 +403,7 @@ def solve_pole_free(
         spent += att.qp_solves
         secs += att.seconds
         att.qp_solves, att.seconds, att.pole_cuts = spent, secs, guarded.n_cuts
-        if att.c is None:
+        if att.c is None or att.timed_out:
             if att.status == "infeasible":
                 att.messages.append(
                     f"no pole-free solution: infeasible with q > 0 at {guarded.n_cuts} "

@@ -44,15 +44,16 @@ def _quadprog(A: Array, b: Array) -> QPSolution:
     return QPSolution("optimal", x, "optimal", "quadprog")
 
 
-def _daqp(A: Array, b: Array) -> QPSolution:
+def _daqp(A: Array, b: Array, time_limit: float | None = None) -> QPSolution:
     from ctypes import c_int
 
     import daqp
 
     k, rows = A.shape[1], A.shape[0]
+    kw = {} if time_limit is None else {"time_limit": float(time_limit)}
     x, _, flag, _ = daqp.solve(
         np.eye(k), np.zeros(k), np.ascontiguousarray(A), np.full(rows, 1e30), b,
-        np.zeros(rows, dtype=c_int),
+        np.zeros(rows, dtype=c_int), **kw,
     )
     if flag >= 1:
         return QPSolution("optimal", np.asarray(x), f"exitflag {flag}", "daqp")
@@ -86,6 +87,10 @@ SOLVERS: dict[str, tuple[str, Callable[[Array, Array], QPSolution]]] = {
 }
 
 
+# Adapters that take a ``time_limit`` keyword.
+_TIMED = {"daqp"}
+
+
 def register_solver(name: str, module: str, fn: Callable[[Array, Array], QPSolution]) -> None:
     """Add a solver: ``fn(A, b)`` solves min ||c||^2/2 s.t. A c >= b."""
     SOLVERS[name] = (module, fn)
@@ -112,11 +117,16 @@ def check_solver(name: str) -> str:
     return name
 
 
-def solve_qp(A: Array, b: Array, solver: str = "quadprog") -> QPSolution:
-    """Solve min ||c||^2/2 s.t. A c >= b with the named solver."""
+def solve_qp(A: Array, b: Array, solver: str = "quadprog",
+             time_limit: float | None = None) -> QPSolution:
+    """Solve min ||c||^2/2 s.t. A c >= b with the named solver.
+
+    ``time_limit`` (seconds) goes to solvers that take one (DAQP; status
+    "error" when it runs out); the others cannot be interrupted."""
     fn = SOLVERS[check_solver(solver)][1]
     try:
-        sol = fn(A, b)
+        sol = fn(A, b, time_limit=time_limit) if time_limit is not None and \
+            solver in _TIMED else fn(A, b)
     except Exception as exc:  # a solver crash is a status, not a crash of the search
         return QPSolution("error", None, f"{type(exc).__name__}: {exc}", solver)
     if sol.x is not None and not np.all(np.isfinite(sol.x)):

@@ -549,6 +549,7 @@ class SearchEngine:
         att, system = solve_pole_free(
             system, n, m, cuts=self.cuts, solver=self.f.solver,
             cross_check=self.f.cross_check, active_set=self.active_set, warm_rows=warm,
+            deadline=self.deadline,
         )
         if att.active_rows is not None:
             # the data rows binding at this split's solution start the next split's
@@ -556,12 +557,15 @@ class SearchEngine:
             self.warm = rows[rows < 2 * self.seg.n_points]
         att.formulation = form
         rf = ver = None
+        if att.timed_out:
+            return att, None, None
         c = att.c if att.c is not None else att.raw_c
         if c is not None:
             rf = system.to_rational(n, m, c)
             ver = self.parts.verifier(rf, self.seg, self.channel)
             if (self.parts.repair is not None and not ver.verified
-                    and ver.n_violations == 0 and np.isfinite(ver.linf)):
+                    and ver.n_violations == 0 and np.isfinite(ver.linf)
+                    and (self.deadline is None or time.perf_counter() < self.deadline)):
                 fixed = self.parts.repair(rf, self.seg, self.channel)
                 if fixed is not None:
                     rf, ver = fixed
@@ -577,6 +581,8 @@ class SearchEngine:
             return self._seed(n, m)
         out = self._solve(system, n, m, "arnoldi")
         att = out[0]
+        if att.timed_out:
+            return out
         verified = out[2] is not None and out[2].verified
         if att.status == "failed" or (self.second_opinion and not verified):
             # A numerical failure in the weighted form (or, for a single split, any
@@ -621,12 +627,16 @@ class SearchEngine:
                 ex.shutdown(wait=False, cancel_futures=True)
         else:
             outs = [self._run(*s) for s in todo]
+        cut = False
         for s, out in zip(todo, outs, strict=True):
+            cut = cut or out[0].timed_out  # cut short: "failed", which rules out nothing
             self.cache[s] = out
             if out[0].status == "infeasible":
                 self.infeasible.append(s)
             if self.f.callback is not None:
                 self.f.callback(out[0])
+        if cut:
+            raise _OutOfTime
 
     def _parallel(self) -> bool:
         """Threads pay off only when QPs are slow: on small problems the Python
