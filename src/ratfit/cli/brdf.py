@@ -43,8 +43,8 @@ _ISOTROPIC_DEFAULT = {"CARTESIAN": "ISOTROPIC_TV_TL_DPHI"}
 @click.option("--param", "param", default=None,
               help="Parametrization to fit in (ALTA names, e.g. RUSIN_TH_TD_PD, COS_TH_TD_PD, "
                    "STARK_2D); default: the file's own (ISOTROPIC_TV_TL_DPHI for Cartesian "
-                   "pairs), and for isotropic angles also RUSIN_TH_TD_PD, keeping the "
-                   "smaller verified fit.")
+                   "pairs), and for isotropic angles RUSIN_TH_TD_PD first, keeping the "
+                   "better verified fit (narrower segments, then fewer coefficients).")
 @click.option("--dt", type=float,
               help="Relative segment width: [(1-dt) y, (1+dt) y]. Without --dt, --abs-width "
                    "and --floor-rel: the file's own intervals, else --dt 0.05 --floor-rel "
@@ -77,8 +77,8 @@ def brdf_fit(input_path: Path, output: Path | None, fmt: str | None, param: str 
              **options: Any) -> None:
     """Fit each channel of a measured BRDF with a verified rational function."""
     from ratfit.brdf.fitter import (
-        alternative_parametrizations,
         brdf_metrics,
+        candidate_parametrizations,
         cos_theta_l,
         fit_brdf_auto,
         save_brdf_fit,
@@ -106,12 +106,14 @@ def brdf_fit(input_path: Path, output: Path | None, fmt: str | None, param: str 
         ds = brdf_dataset(input_path, param, fmt=fmt,
                           channels=_split_channels(channels) or None, color=color,
                           max_points=max_points)
-    # No --param and no fixed size: also try the half-vector frame, keep the smaller fit.
-    others = () if user_param or params["n"] is not None or params["total"] is not None \
-        else alternative_parametrizations(str(ds.meta.get("param_in")))
-    datasets = [ds] + [brdf_dataset(input_path, other, fmt=fmt,
-                                    channels=_split_channels(channels) or None, color=color,
-                                    max_points=max_points) for other in others]
+    # No --param and no fixed size: the half-vector frame first, then the angles.
+    names = (str(ds.meta.get("param_in")),) if user_param or params["n"] is not None \
+        or params["total"] is not None else \
+        candidate_parametrizations(str(ds.meta.get("param_in")))
+    datasets = [ds if name == ds.meta.get("param_in") else
+                brdf_dataset(input_path, name, fmt=fmt,
+                             channels=_split_channels(channels) or None, color=color,
+                             max_points=max_points) for name in names]
     cb, stop = _progress(True)  # stderr: JSON on stdout stays clean
     try:
         fitter, seg, meta = fit_brdf_auto(
@@ -125,14 +127,18 @@ def brdf_fit(input_path: Path, output: Path | None, fmt: str | None, param: str 
         click.echo(f"parametrization: {param} (chosen for the file's {own}; "
                    "--param overrides)", err=True)
     if len(datasets) > 1 and not as_json:
-        tried = "; ".join(
-            f"{c['parametrization']}: " + (f"{c['coefficients']} coefficients"
-                                           if c["verified"] else "no verified fit")
-            + (f" (searched up to {c['searched_up_to']} per channel)"
-               if c["searched_up_to"] and not c["verified"] else "")
-            for c in meta["candidates"])
-        click.echo(f"parametrization: {meta['parametrization']} ({tried}; "
-                   "the smaller verified fit is kept; --param fixes one)", err=True)
+        def said(c: dict[str, Any]) -> str:
+            if c.get("skipped"):
+                return f"{c['parametrization']}: not tried, {c['skipped']}"
+            if c["verified"]:
+                return f"{c['parametrization']}: {c['coefficients']} coefficients"
+            up = f" up to {c['searched_up_to']} per channel" if c["searched_up_to"] else ""
+            return f"{c['parametrization']}: no verified fit{up}"
+
+        click.echo(f"parametrization: {meta['parametrization']} ("
+                   + "; ".join(said(c) for c in meta["candidates"])
+                   + "; narrower segments, then fewer coefficients win; --param fixes one)",
+                   err=True)
     widths = meta["segments"]
     if widths["default"] and not as_json:
         why = "" if widths["dt"] == DEFAULT_DT else (
