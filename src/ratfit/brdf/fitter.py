@@ -505,7 +505,13 @@ class BRDFFitter(RationalFitter):
         pole_grid = space.to_window(grid) if grid is not None and grid.size else None
         return SearchParts(systems=_BRDFSystems(self, parts.systems), verifier=self._verify,
                            pole_free=pole_free, pole_grid=pole_grid,
-                           repair=self._repair if self.physical and self.polish else None)
+                           repair=self._repair if self.physical and self.polish else None,
+                           constraint_points=self._constraint_points if self.physical
+                           else None)
+
+    def _constraint_points(self) -> int:
+        """How many validity points the verifier has added to the split systems."""
+        return sum(len(e) for e in getattr(self, "_extra", []))
 
     def _split_system(self, space: PolynomialSpace, seg: Segments, j: int, n: int, m: int,
                       like: RowSystem | None = None) -> RowSystem | None:

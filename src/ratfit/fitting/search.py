@@ -460,6 +460,10 @@ class SearchParts:
     ``pole_grid`` (window points) when given. ``repair``, when given, gets a
     candidate that meets every segment but fails the verifier otherwise and may
     return another fit of the same (n, m) with its (passing) verification.
+    ``constraint_points``, when given, counts the points the verifier has added
+    to the split systems' constraints (constraint generation); a split whose
+    candidate was rejected while that count grew is solved again with them, up
+    to ``regenerate`` times.
     """
 
     systems: SystemFactory
@@ -468,6 +472,8 @@ class SearchParts:
     pole_grid: Array | None = None
     repair: Callable[[RationalFunction, Segments, int],
                      tuple[RationalFunction, Verification] | None] | None = None
+    constraint_points: Callable[[], int] | None = None
+    regenerate: int = 2
 
 
 def fit(segments: Segments, **params) -> FitResult:
@@ -497,6 +503,9 @@ def fit(segments: Segments, **params) -> FitResult:
 
 
 MAX_JOBS = 1024
+# Rejected candidates are solved again with the verifier's new constraint points
+# up to this many samples (see SearchEngine._run).
+REGENERATE_POINTS = 65_536
 
 
 def _is_int(v: object) -> bool:
@@ -576,6 +585,39 @@ class SearchEngine:
         return self._solve(self.system, n, m, "basis")
 
     def _run(self, n: int, m: int) -> Candidate:
+        """Test (n, m); a QP-feasible candidate that the verifier rejected after
+        adding constraint points (``parts.constraint_points`` grew: a BRDF fit
+        negative or through a pole between samples) is solved again with them, up
+        to ``parts.regenerate`` times: it then verifies, or the split becomes
+        infeasible, which rules out every smaller split (a rejected candidate rules
+        out nothing and makes the walk go on below its total)."""
+        count = self.parts.constraint_points
+        before = count() if count is not None else 0
+        out = self._run_once(n, m)
+        # large data: a second solve is a second pass over every sample (the walk's
+        # cost there is in the solves, not in the verifier)
+        again_at_most = 0 if count is None or self.seg.n_points > REGENERATE_POINTS else (
+            self.parts.regenerate)
+        for _ in range(again_at_most):
+            att, _, ver = out
+            if (att.timed_out or att.status != "feasible" or ver is None or ver.verified
+                    or ver.n_violations or not np.isfinite(ver.linf)):
+                break
+            now = count()
+            if now <= before or (self.deadline is not None
+                                 and time.perf_counter() > self.deadline):
+                break
+            before = now
+            again = self._run_once(n, m)
+            again[0].qp_solves += att.qp_solves
+            again[0].seconds += att.seconds
+            again[0].messages = att.messages + [
+                "solved again with the validity points its rejected candidate added"
+            ] + again[0].messages
+            out = again
+        return out
+
+    def _run_once(self, n: int, m: int) -> Candidate:
         system = self.split_system(n, m)
         if system is None:
             return self._seed(n, m)

@@ -1,0 +1,59 @@
+"""A candidate rejected by the verifier after it added constraint points is solved
+again (constraint generation inside one split), so the walk need not go on below it."""
+
+from __future__ import annotations
+
+import dataclasses
+from collections import Counter
+
+import numpy as np
+
+from ratfit.core.segments import Segments
+from ratfit.fitting.search import RationalFitter, verify_channel
+
+
+class _FirstCandidateRejected(RationalFitter):
+    """Every split's first verified candidate is rejected, as if a denser check had
+    found a flaw and added points (the BRDF physical check does that)."""
+
+    regenerate = 2
+
+    def _search_parts(self, space, seg):
+        parts = super()._search_parts(space, seg)
+        if not hasattr(self, "calls"):  # fit() asks for the parts again at the end
+            self.calls: Counter = Counter()
+            self.points = 0
+
+        def verifier(rf, s, j):
+            ver = verify_channel(rf, s, j)
+            self.calls[(rf.n, rf.m)] += 1
+            if ver.verified and self.calls[(rf.n, rf.m)] == 1:
+                self.points += 1
+                return dataclasses.replace(ver, verified=False)
+            return ver
+
+        return dataclasses.replace(parts, verifier=verifier,
+                                   constraint_points=lambda: self.points,
+                                   regenerate=self.regenerate)
+
+
+def _seg() -> Segments:
+    x = np.linspace(-1.0, 1.0, 200)
+    return Segments.from_relative(x, np.exp(np.sin(3 * x)) / (1.2 + x), 1e-2)
+
+
+def test_rejected_candidate_is_solved_again_and_the_answer_is_unchanged() -> None:
+    plain = RationalFitter(jobs=1).fit(_seg()).result_
+    assert plain.success and (plain.n, plain.m) == (4, 5)
+    f = _FirstCandidateRejected(jobs=1).fit(_seg())
+    res = f.result_
+    assert res.success and (res.n, res.m) == (plain.n, plain.m)
+    assert f.calls[(res.n, res.m)] == 2  # rejected once, verified when solved again
+
+
+def test_without_solving_again_every_split_stays_rejected() -> None:
+    f = _FirstCandidateRejected(jobs=1)
+    f.regenerate = 0
+    res = f.fit(_seg()).result_
+    assert not res.success
+    assert all(v == 1 for v in f.calls.values())
