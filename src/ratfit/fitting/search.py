@@ -729,7 +729,8 @@ class SearchEngine:
 
     def _bracket(self, lo: int, hi: int, start: int | None) -> tuple[int, int] | None:
         """A feasible split near the minimal total, from balanced splits: galloping
-        totals start, start + 1, start + 3, start + 7, ... (start: a hint such as the
+        totals start, start + 1, start + 3, start + 6, start + 10, start + 16, ...
+        (steps growing by half each time; start: a hint such as the
         previous channel's total, else lo) up to the first feasible one, then
         bisection between it and the largest infeasible one. Feasibility of the
         balanced split grows with the total, so this takes O(log) tests where a
@@ -747,7 +748,10 @@ class SearchEngine:
             while len(probes) < width and t <= hi:
                 probes.append(_balanced(t))
                 # the last total hi is always tested: no jump past the range
-                t, st = (min(t + st, hi) if t < hi else hi + 1), 2 * st
+                # steps 1, 2, 3, 4, 6, 9, 13, ...: a feasible probe far above the
+                # answer is the most expensive test of a search (on the EXR's B
+                # channel a (32, 32) probe cost more than the walk below it)
+                t, st = (min(t + st, hi) if t < hi else hi + 1), max(st + 1, (3 * st) // 2)
             extra = []
             if poly is None and sum(probes[-1]) >= self.cap + 1 >= lo:
                 # A polynomial through every point (q constant: no pole) always fits;
