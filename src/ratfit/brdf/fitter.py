@@ -566,8 +566,12 @@ class BRDFFitter(RationalFitter):
         if len(chk.bad_points):
             # constraint generation: later splits keep q > 0, p >= 0 there too
             self._extra.append(chk.bad_points[:200])
-        with np.errstate(divide="ignore", invalid="ignore"):
-            at_samples = bool(np.all(rf(seg.x) >= 0))
+        if np.all(seg.lo[:, j] >= 0):
+            # every (finite) value is inside its segment here (checked above): r >= lo >= 0
+            at_samples = True
+        else:
+            with np.errstate(divide="ignore", invalid="ignore"):
+                at_samples = bool(np.all(rf(seg.x) >= 0))
         ok = (chk.valid and at_samples and ver.poles_in_domain == 0
               and not ver.denominator_sign_changes)
         return replace(ver, verified=ok,
