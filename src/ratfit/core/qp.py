@@ -24,7 +24,7 @@ from numpy.typing import NDArray
 from ratfit.core.bases import PolynomialSpace
 from ratfit.core.rational import RationalFunction
 from ratfit.core.segments import Segments
-from ratfit.core.solvers import solve_qp
+from ratfit.core.solvers import first_available, solve_qp
 from ratfit.core.systems import PositiveDenominator, RowSystem, denominator_cuts
 from ratfit.errors import InputError
 
@@ -441,6 +441,9 @@ def _positive(v: Array) -> bool:
     return bool(np.all(np.isfinite(v)) and np.all(v > 0))
 
 
+_ORTH_SOLVER = first_available(("daqp", "quadprog"))
+
+
 def _cross_check(A: Array, kind: str) -> Array | None:
     """Look for c with A c > 0 in a second formulation; None if it finds none.
 
@@ -459,8 +462,10 @@ def _cross_check(A: Array, kind: str) -> Array | None:
         W, s, Zt = W[:, keep], s[keep], Zt[keep]
         wn = np.linalg.norm(W, axis=1)
         if kind == "orth":
-            sol = solve_qp(W, 1e-3 * wn, "quadprog")
-            u = sol.x
+            # DAQP (a core dependency) first: quadprog was seen cycling forever on one
+            # of these well-conditioned QPs (acryl_blue, half-vector frame, no time limit).
+            sol = solve_qp(W, 1e-3 * wn, _ORTH_SOLVER)
+            u = sol.x if sol.status == "optimal" else None
         elif kind == "lp":
             u = _lp_margin(W / np.where(wn > 0, wn, 1.0)[:, None])
         else:  # pragma: no cover - validated by callers
