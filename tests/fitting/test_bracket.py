@@ -1,0 +1,22 @@
+"""The bracket gallops in steps growing by half: a feasible probe far above the answer
+is the most expensive test of a big search. The walk below still proves the minimum."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ratfit.core.segments import Segments
+from ratfit.fitting.search import RationalFitter
+
+
+def test_gallop_steps_grow_by_half_and_the_answer_is_the_exhaustive_one() -> None:
+    x = np.linspace(-1.0, 1.0, 400)
+    seg = Segments.from_relative(x, np.exp(np.sin(4 * x)) / (1.2 + x), 1e-3)
+    walk = RationalFitter(jobs=1).fit(seg).result_
+    every = RationalFitter(jobs=1, strategy="exhaustive").fit(seg).result_
+    assert (walk.n, walk.m) == (every.n, every.m) == (10, 4)
+    probes = [(h["n"], h["m"]) for h in walk.history[:6]]
+    # balanced splits at totals 2, 3, 5, 8, 12, 18 (doubling steps: 2, 3, 5, 9, 17, 33)
+    assert probes == [(1, 1), (2, 1), (3, 2), (4, 4), (6, 6), (9, 9)]
+    assert walk.history[5]["status"] == "feasible"
+    assert len(walk.history) == 20 < len(every.history) == 91
