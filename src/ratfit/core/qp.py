@@ -269,6 +269,7 @@ def solve_fixed(
         att.solver_status = sol.status
         c = sol.x if sol.status == "optimal" and _positive(A @ sol.x) else None
         att.decided_by = solver
+        undecided = False
         if sol.status == "optimal" and c is None:
             c = _refine(A, b, sol.x)
             if c is not None:
@@ -282,7 +283,12 @@ def solve_fixed(
             if delta < 1e-6:
                 kinds += [k for k in ("orth", "lp") if k not in kinds]
             for kind in kinds:
-                c = _cross_check(A, kind)
+                try:
+                    c = _cross_check(A, kind, None if deadline is None else
+                                     max(deadline - time.perf_counter(), 1e-3))
+                except _Undecided:
+                    c, undecided = None, True
+                    continue
                 att.qp_solves += 1
                 if c is not None:
                     c = c * float(np.max(b / (A @ c)))  # onto the QP's rows: A c >= b
@@ -292,9 +298,14 @@ def solve_fixed(
                             f"{solver} reported infeasible, the {kind} check found a point"
                         )
                     break
+        if c is None and deadline is not None and time.perf_counter() >= deadline:
+            _out_of_time(att)  # a check cut short decides nothing
+            break
         if c is None:
-            # An unchecked "infeasible" is not believed: it would rule out splits.
-            believed = sol.status == "infeasible" and cross_check != "none"
+            # An unchecked "infeasible" is not believed: it would rule out splits
+            # (nor one whose every check broke down).
+            believed = (sol.status == "infeasible" and cross_check != "none"
+                        and not (undecided and len(kinds) == 1))
             att.status = "infeasible" if believed else "failed"
             att.messages.append(sol.message)
             if sol.status == "infeasible" and not believed:
@@ -444,8 +455,18 @@ def _positive(v: Array) -> bool:
 _ORTH_SOLVER = first_available(("daqp", "quadprog"))
 
 
-def _cross_check(A: Array, kind: str) -> Array | None:
-    """Look for c with A c > 0 in a second formulation; None if it finds none.
+class _Undecided(Exception):
+    """A cross check's own solver broke down (or ran out of time): no verdict."""
+
+
+def _cross_check(A: Array, kind: str, time_limit: float | None = None) -> Array | None:
+    """Look for c with A c > 0 in a second formulation; None if it finds none
+    (raises :class:`_Undecided` when its solver breaks down instead).
+
+    "orth" solves its QP with DAQP (``time_limit``: the search's time left):
+    quadprog was seen cycling forever inside one call on these QPs (acryl_blue
+    in the half-vector frame; cayman at a 0.05 % floor, past --time-limit 60),
+    and no deadline reaches inside it.
 
     Columns are orthonormalised by an SVD of the row-normalised matrix, c = Z S^-1 u:
     a feasible direction that A nearly annihilates (segments of relative width
@@ -462,9 +483,9 @@ def _cross_check(A: Array, kind: str) -> Array | None:
         W, s, Zt = W[:, keep], s[keep], Zt[keep]
         wn = np.linalg.norm(W, axis=1)
         if kind == "orth":
-            # DAQP (a core dependency) first: quadprog was seen cycling forever on one
-            # of these well-conditioned QPs (acryl_blue, half-vector frame, no time limit).
-            sol = solve_qp(W, 1e-3 * wn, _ORTH_SOLVER)
+            sol = solve_qp(W, 1e-3 * wn, _ORTH_SOLVER, time_limit=time_limit)
+            if sol.status == "error":
+                raise _Undecided(sol.message)
             u = sol.x if sol.status == "optimal" else None
         elif kind == "lp":
             u = _lp_margin(W / np.where(wn > 0, wn, 1.0)[:, None])

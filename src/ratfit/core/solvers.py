@@ -88,7 +88,7 @@ SOLVERS: dict[str, tuple[str, Callable[[Array, Array], QPSolution]]] = {
 
 
 # Adapters that take a ``time_limit`` keyword.
-_TIMED = {"daqp"}
+TIMED_SOLVERS = frozenset({"daqp"})
 
 
 def register_solver(name: str, module: str, fn: Callable[[Array, Array], QPSolution]) -> None:
@@ -126,7 +126,7 @@ def solve_qp(A: Array, b: Array, solver: str = "quadprog",
     fn = SOLVERS[check_solver(solver)][1]
     try:
         sol = fn(A, b, time_limit=time_limit) if time_limit is not None and \
-            solver in _TIMED else fn(A, b)
+            solver in TIMED_SOLVERS else fn(A, b)
     except Exception as exc:  # a solver crash is a status, not a crash of the search
         return QPSolution("error", None, f"{type(exc).__name__}: {exc}", solver)
     if sol.x is not None and not np.all(np.isfinite(sol.x)):
