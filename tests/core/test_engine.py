@@ -249,6 +249,32 @@ def test_lying_solver_is_cross_checked():
     assert not trusting.success and trusting.status == 1
 
 
+def test_a_cross_check_that_breaks_down_proves_nothing(monkeypatch):
+    """An "infeasible" is believed only when a cross check answered: one whose own
+    solver broke down (or ran out of time) leaves the split failed, ruling out nothing."""
+    import ratfit.core.qp as qp
+
+    def liar(A, b):
+        return QPSolution("infeasible", None, "claims infeasible", "liar")
+
+    register_solver("liar", "numpy", liar)
+    x = np.linspace(0, 2, 80)
+    seg = ratfit.Segments.from_relative(x, 1 / (1 + x), 0.05)
+
+    def broken(A, kind, time_limit=None):
+        raise qp._Undecided("the check's solver broke down")
+
+    monkeypatch.setattr(qp, "_cross_check", broken)
+    res = ratfit.fit(seg, solver="liar", max_total=6)
+    assert not res.success and res.infeasible_proof is None
+    assert {h["status"] for h in res.history} == {"failed"}
+    assert "no rational of this size fits" not in res.message
+    # a check that answers "no point" is a verdict: the same splits are infeasible
+    monkeypatch.setattr(qp, "_cross_check", lambda A, kind, time_limit=None: None)
+    res = ratfit.fit(seg, solver="liar", max_total=6)
+    assert {h["status"] for h in res.history} == {"infeasible"}
+
+
 def test_solver_returning_violating_point_is_not_success():
     def garbage(A, b):
         return QPSolution("optimal", np.ones(A.shape[1]), "optimal", "garbage")

@@ -269,7 +269,7 @@ def solve_fixed(
         att.solver_status = sol.status
         c = sol.x if sol.status == "optimal" and _positive(A @ sol.x) else None
         att.decided_by = solver
-        undecided = False
+        verdicts = 0  # cross checks that answered (a point, or none)
         if sol.status == "optimal" and c is None:
             c = _refine(A, b, sol.x)
             if c is not None:
@@ -287,8 +287,9 @@ def solve_fixed(
                     c = _cross_check(A, kind, None if deadline is None else
                                      max(deadline - time.perf_counter(), 1e-3))
                 except _Undecided:
-                    c, undecided = None, True
+                    c = None
                     continue
+                verdicts += 1
                 att.qp_solves += 1
                 if c is not None:
                     c = c * float(np.max(b / (A @ c)))  # onto the QP's rows: A c >= b
@@ -304,8 +305,7 @@ def solve_fixed(
         if c is None:
             # An unchecked "infeasible" is not believed: it would rule out splits
             # (nor one whose every check broke down).
-            believed = (sol.status == "infeasible" and cross_check != "none"
-                        and not (undecided and len(kinds) == 1))
+            believed = sol.status == "infeasible" and cross_check != "none" and verdicts > 0
             att.status = "infeasible" if believed else "failed"
             att.messages.append(sol.message)
             if sol.status == "infeasible" and not believed:
