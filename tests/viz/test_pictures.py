@@ -155,3 +155,31 @@ print(matplotlib.get_backend(), "matplotlib.pyplot" in sys.modules)
     for name in ("f.png", "s.png"):
         data = (tmp_path / name).read_bytes()
         assert data[:8] == b"\x89PNG\r\n\x1a\n" and len(data) > 1000, name
+
+
+def test_report_without_albedo_has_no_empty_albedo_plot(dense, tmp_path, monkeypatch):
+    """Where the fit's domain leaves no incidence with a directional albedo (cayman in
+    the half-vector frame), the page says so in words and shows no empty plot."""
+    import ratfit.brdf.albedo as albedo_mod
+
+    real = albedo_mod.directional_albedo
+
+    def nowhere(*args, **kw):
+        alb = real(*args, **kw)
+        alb.albedo[:] = np.nan
+        return alb
+
+    monkeypatch.setattr(albedo_mod, "directional_albedo", nowhere)
+    x, y, _, doc = dense
+    fit = tmp_path / "fit.json"
+    save_fit(fit, doc)
+    data = tmp_path / "data.dat"
+    rows = "\n".join(" ".join(repr(float(v)) for v in r) for r in np.hstack([x, y]))
+    data.write_text(f"#DIM 2 1\n#PARAM_IN {PARAM}\n#PARAM_OUT INV_STERADIAN\n{rows}\n")
+    r = CliRunner().invoke(main, ["report", str(fit), "--data", str(data), "-o",
+                                  str(tmp_path / "rep")])
+    assert r.exit_code == 0, r.output
+    page = (tmp_path / "rep" / "index.html").read_text()
+    assert "Directional albedo: not available" in page
+    assert "albedo.png" not in page and not (tmp_path / "rep" / "albedo.png").exists()
+    assert "src='spheres.png'" in page

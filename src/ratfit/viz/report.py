@@ -277,8 +277,9 @@ def write_report(fit_path: str | os.PathLike[str], data_path: str | os.PathLike[
 
         alb = directional_albedo(funcs["rational"], n_mu=48, n_phi=96)
         res.albedo = alb.to_dict()
-        pics.append(("Directional albedo of the rational fit",
-                     _plot_albedo(alb, fit.channel_names, out / "albedo.png")))
+        if np.any(np.isfinite(alb.albedo)):  # else the page says why, with no empty plot
+            pics.append(("Directional albedo of the rational fit",
+                         _plot_albedo(alb, fit.channel_names, out / "albedo.png")))
     res.pictures = [p for _, p in pics]
     page = _html(fit, data_path, res, pics, __version__)
     with atomic_open(res.index, "w") as fh:
@@ -324,9 +325,6 @@ def _plot_albedo(alb, names: list[str], path: Path) -> Path:
     fig, ax = plt.subplots(figsize=(6, 3.5))
     for j, n in enumerate(names):
         ax.plot(np.degrees(alb.theta_i), alb.albedo[:, j], ".-", label=n)
-    if not np.any(np.isfinite(alb.albedo)):
-        ax.text(0.5, 0.5, "albedo not available: the fit's domain does not cover the "
-                "hemisphere", transform=ax.transAxes, ha="center", va="center", fontsize=9)
     ax.axhline(1.0, color="r", lw=0.8, ls="--", label="energy limit")
     ax.set_xlabel("incidence theta_i (deg)")
     ax.set_ylabel("directional albedo")
