@@ -83,13 +83,13 @@ def polish_fit(
     w = np.ones(N) if weights is None else np.asarray(weights, dtype=float).ravel()
     # Objective: || diag(w / q0) (P a - y Q b) ||^2, plus a tiny ridge for uniqueness.
     M = np.hstack([P, -y[:, None] * Q]) * (w / q0)[:, None]
-    H = M.T @ M
     k = n + m
-    ridge = 1e-10 * max(float(np.trace(H)) / k, 1e-300)
-    H[np.diag_indices(k)] += ridge
-    try:
-        R = np.linalg.cholesky(H).T  # H = R^T R, z = R c
-    except np.linalg.LinAlgError:
+    ridge = 1e-10 * max(float(np.sum(M * M)) / k, 1e-300)
+    # H = M^T M + ridge I = R^T R, z = R c; R from a QR of the stacked rows, not a
+    # Cholesky of H: with q over six decades (a mirror's peak) H's condition is the
+    # square of M's and the whitened QP met its rows only to ~1e-4.
+    R = np.linalg.qr(np.vstack([M, np.sqrt(ridge) * np.eye(k)]), mode="r")
+    if not np.all(np.isfinite(R)) or np.any(np.abs(np.diag(R)) == 0):
         return None
     Rinv = np.linalg.solve(R, np.eye(k))
     # The band's inner part may be empty at the minimal size (the search's own
@@ -160,7 +160,15 @@ def _solve_band(P: Array, Q: Array, lo: Array, hi: Array, q0: Array, Rinv: Array
             return None
         c = Rinv @ sol.x
         res = all_rows @ c - all_h
-        missed = active & (res < -1e-12)
+        # missed: the value itself lands in the outer half of the cut (or, at tau = 0,
+        # outside the segment by more than 1e-9 of its width); a positivity row by
+        # more than 1e-9. A row met to rounding is not missed: with q over six decades
+        # lifting those never settles.
+        with np.errstate(all="ignore"):
+            r = (P @ c[:n]) / (Q @ c[n:])
+        slack = np.minimum(r - (lo + 0.5 * tau * width), (hi - 0.5 * tau * width) - r)
+        off = ~(slack >= -1e-9 * width)
+        missed = active & (np.concatenate([off, off, res[2 * len(lo):] < -1e-9]))
         bad = np.flatnonzero(~(res >= 0) & ~active)
         if bad.size == 0 and not missed.any():
             break
