@@ -275,6 +275,29 @@ def test_a_cross_check_that_breaks_down_proves_nothing(monkeypatch):
     assert {h["status"] for h in res.history} == {"infeasible"}
 
 
+def test_orth_no_point_is_confirmed_by_the_lp(monkeypatch):
+    """The orth check (DAQP) missed points on EXR QPs that quadprog and the LP found:
+    its "no point" is confirmed by the LP before an infeasibility is believed."""
+    import ratfit.core.qp as qp
+
+    def liar(A, b):
+        return QPSolution("infeasible", None, "claims infeasible", "liar")
+
+    register_solver("liar", "numpy", liar)
+    x = np.linspace(0, 2, 80)
+    seg = ratfit.Segments.from_relative(x, 1 / (1 + x), 0.05)
+    real = qp._cross_check
+
+    def orth_misses(A, kind, time_limit=None):
+        return None if kind == "orth" else real(A, kind, time_limit)
+
+    monkeypatch.setattr(qp, "_ORTH_SOLVER", "daqp")
+    monkeypatch.setattr(qp, "_cross_check", orth_misses)
+    res = ratfit.fit(seg, solver="liar", max_total=6)
+    assert res.success and res.decided_by == "liar+lp"
+    assert (res.n, res.m) == (1, 2)  # 1 / (1 + x)
+
+
 def test_solver_returning_violating_point_is_not_success():
     def garbage(A, b):
         return QPSolution("optimal", np.ones(A.shape[1]), "optimal", "garbage")

@@ -280,6 +280,10 @@ def solve_fixed(
             # The chosen check first; when margins are tiny (delta < 1e-6) both, even
             # with cross_check="none": a float QP misreads such margins as infeasible.
             kinds = [] if cross_check == "none" else [cross_check]
+            if cross_check == "orth" and _ORTH_SOLVER == "daqp":
+                # DAQP's "no point" in the orth form is not final either: on the EXR
+                # it missed points quadprog and the LP both found, ruling out (30, 15)
+                kinds.append("lp")
             if delta < 1e-6:
                 kinds += [k for k in ("orth", "lp") if k not in kinds]
             for kind in kinds:
@@ -488,7 +492,7 @@ def _cross_check(A: Array, kind: str, time_limit: float | None = None) -> Array 
                 raise _Undecided(sol.message)
             u = sol.x if sol.status == "optimal" else None
         elif kind == "lp":
-            u = _lp_margin(W / np.where(wn > 0, wn, 1.0)[:, None])
+            u = _lp_margin(W / np.where(wn > 0, wn, 1.0)[:, None], time_limit)
         else:  # pragma: no cover - validated by callers
             raise ValueError(kind)
         if u is None:
@@ -501,7 +505,7 @@ def _cross_check(A: Array, kind: str, time_limit: float | None = None) -> Array 
     return c if _positive(A.astype(np.longdouble) @ c.astype(np.longdouble)) else None
 
 
-def _lp_margin(An: Array) -> Array | None:
+def _lp_margin(An: Array, time_limit: float | None = None) -> Array | None:
     """max s  s.t.  An c >= s, -1 <= c <= 1 (HiGHS through SciPy)."""
     from scipy.optimize import linprog
 
@@ -510,8 +514,11 @@ def _lp_margin(An: Array) -> Array | None:
     cost[-1] = -1.0
     a_ub = np.hstack([-An, np.ones((rows, 1))])
     res = linprog(
-        cost, A_ub=a_ub, b_ub=np.zeros(rows), bounds=[(-1, 1)] * k + [(None, 1)], method="highs"
+        cost, A_ub=a_ub, b_ub=np.zeros(rows), bounds=[(-1, 1)] * k + [(None, 1)], method="highs",
+        options={} if time_limit is None else {"time_limit": float(time_limit)},
     )
+    if res.status in (1, 4):  # iteration / time limit, numerical trouble: no verdict
+        raise _Undecided(res.message)
     if res.status != 0 or res.x[-1] <= 0:
         return None
     return np.asarray(res.x[:k])
