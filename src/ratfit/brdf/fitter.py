@@ -64,7 +64,7 @@ _NEEDS_THETA_L = ("full", "isotropic", "tv_tl")
 # the same segments: cayman 39 -> 25 coefficients, krylon_blue 128 -> 54, all five
 # smaller); the retro files have no fit up to 100 in their own angles and one here.
 # Its default floor is half as wide: measured on the five Cornell materials against
-# lambert+ggx / lambert+beckmann, it wins all three errors in 10 of 15 channels at
+# lambert+ggx / lambert+beckmann, it wins all three errors in 12 of 15 channels at
 # 0.1 % (5 of 15 at 0.2 %), with 7-34 coefficients per channel.
 HALF_VECTOR = "RUSIN_TH_TD_PD"
 HALF_VECTOR_FLOOR_REL = 0.001
