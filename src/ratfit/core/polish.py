@@ -92,10 +92,11 @@ def polish_fit(
     if not np.all(np.isfinite(R)) or np.any(np.abs(np.diag(R)) == 0):
         return None
     Rinv = np.linalg.solve(R, np.eye(k))
+    grid, h_grid = _positivity_rows(rf, q0, positive_at)
     # The band's inner part may be empty at the minimal size (the search's own
     # margin can be 1e-3 of a width): a narrower cut-off before giving up.
     for cut in (tau, tau / 4, tau / 20):
-        c = _solve_band(P, Q, lo, hi, q0, Rinv, cut, positive_at, rf, solver,
+        c = _solve_band(P, Q, lo, hi, Rinv, cut, grid, h_grid, rf, solver,
                         max_rounds, start_rows, deadline)
         if c is not None or (deadline is not None and time.perf_counter() > deadline):
             break
@@ -104,10 +105,27 @@ def polish_fit(
     return RationalFunction(rf.space, c[:n], c[n:], p_basis=rf.p_basis, q_basis=rf.q_basis)
 
 
-def _solve_band(P: Array, Q: Array, lo: Array, hi: Array, q0: Array, Rinv: Array,
-                tau: float, positive_at: ArrayLike | None, rf: RationalFunction,
-                solver: str, max_rounds: int, start_rows: int,
-                deadline: float | None) -> Array | None:
+def _positivity_rows(rf: RationalFunction, q0: Array,
+                     positive_at: ArrayLike | None) -> tuple[Array, Array]:
+    """Rows G c >= h keeping q > 0 and p >= 0 at ``positive_at`` (none without points);
+    the same for every cut-off, so built once."""
+    k = rf.n + rf.m
+    if positive_at is None or not len(positive_at):
+        return np.zeros((0, k)), np.zeros(0)
+    # q on the extra points at least 1 % of its smallest value on the data (q is
+    # scaled to mean 1 there): a margin that a sign change between points cannot hide in.
+    q_floor = 0.01 * float(q0.min() / q0.mean())
+    Pg, Qg = _design(rf, np.asarray(positive_at, dtype=float))
+    pn = np.linalg.norm(Pg, axis=1)
+    pn[pn == 0] = 1.0
+    grid = np.vstack([np.hstack([np.zeros_like(Pg), Qg]),
+                      np.hstack([Pg / pn[:, None], np.zeros_like(Qg)])])
+    return grid, np.concatenate([np.full(len(Qg), q_floor), np.zeros(len(Pg))])
+
+
+def _solve_band(P: Array, Q: Array, lo: Array, hi: Array, Rinv: Array, tau: float,
+                grid: Array, h_grid: Array, rf: RationalFunction, solver: str,
+                max_rounds: int, start_rows: int, deadline: float | None) -> Array | None:
     """The active-set QP of :func:`polish_fit` for one cut-off ``tau``: its
     coefficients (a, b), or None when infeasible, unsolved or out of time."""
     n, m = P.shape[1], Q.shape[1]
@@ -123,18 +141,6 @@ def _solve_band(P: Array, Q: Array, lo: Array, hi: Array, q0: Array, Rinv: Array
     scale = np.linalg.norm(rows_data, axis=1)
     scale[scale == 0] = 1.0
     rows_data = rows_data / scale[:, None]
-    # q on the extra points at least 1 % of its smallest value on the data (q is
-    # scaled to mean 1 there): a margin that a sign change between points cannot hide in.
-    q_floor = 0.01 * float(q0.min() / q0.mean())
-    if positive_at is not None and len(positive_at):
-        Pg, Qg = _design(rf, np.asarray(positive_at, dtype=float))
-        pn = np.linalg.norm(Pg, axis=1)
-        pn[pn == 0] = 1.0
-        grid = np.vstack([np.hstack([np.zeros_like(Pg), Qg]),
-                          np.hstack([Pg / pn[:, None], np.zeros_like(Qg)])])
-        h_grid = np.concatenate([np.full(len(Qg), q_floor), np.zeros(len(Pg))])
-    else:
-        grid, h_grid = np.zeros((0, k)), np.zeros(0)
     all_rows = np.vstack([rows_data, grid])
     all_h = np.concatenate([np.zeros(rows_data.shape[0]), h_grid])
     # Start from the rows nearest to binding for the starting fit, spread over the data.
@@ -168,7 +174,8 @@ def _solve_band(P: Array, Q: Array, lo: Array, hi: Array, q0: Array, Rinv: Array
             r = (P @ c[:n]) / (Q @ c[n:])
         slack = np.minimum(r - (lo + 0.5 * tau * width), (hi - 0.5 * tau * width) - r)
         off = ~(slack >= -1e-9 * width)
-        missed = active & (np.concatenate([off, off, res[2 * len(lo):] < -1e-9]))
+        # (only the side a missed value crossed: lifting the other would loosen it)
+        missed = active & (res < 0) & np.concatenate([off, off, res[2 * len(lo):] < -1e-9])
         bad = np.flatnonzero(~(res >= 0) & ~active)
         if bad.size == 0 and not missed.any():
             break
