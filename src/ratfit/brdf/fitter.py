@@ -284,9 +284,9 @@ def fit_brdf_auto(datasets: list[Dataset], **kw: Any):
     last = best = None
     for ds in datasets:
         name = str(ds.meta.get("param_in", "UNKNOWN"))
-        band = _band(ds, kw)
         opts = dict(kw)
         if best is not None:
+            band = _band(ds, kw)  # before fitting: it may make the fit needless
             if band > best[3]:
                 tried.append({"parametrization": name, "verified": None, "coefficients": None,
                               "dt": band[0], "floor_rel": band[1], "searched_up_to": None,
@@ -296,6 +296,7 @@ def fit_brdf_auto(datasets: list[Dataset], **kw: Any):
                 cap = max(r.n + r.m for r in best[0].results_)
                 opts["max_total"] = min(cap, int(kw.get("max_total") or cap))
         fitter, seg, meta = fit_brdf(ds, **opts)
+        band = float(meta["segments"]["dt"] or 0.0), float(meta["segments"]["floor_rel"] or 0.0)
         ok = fitter.success_
         total = sum(r.n + r.m for r in fitter.results_)
         tried.append({"parametrization": meta["parametrization"], "verified": ok,
@@ -423,8 +424,10 @@ class BRDFFitter(RationalFitter):
         return cache[1]
 
     def _polish_rounds(self, rf: RationalFunction, seg: Segments, j: int,
+                       deadline: float | None,
                        rounds: int = 4) -> tuple[RationalFunction, Verification] | None:
-        """The least-squares polish of ``rf`` that passes :meth:`_verify`, or None.
+        """The least-squares polish of ``rf`` that passes :meth:`_verify`, or None
+        (also once ``deadline``, a ``time.perf_counter()`` value, has passed).
 
         Where the dense validity check still finds q <= 0 or r < 0, those points
         join the polish's constraints and it runs again (constraint generation).
@@ -434,16 +437,12 @@ class BRDFFitter(RationalFitter):
         pts = self._configurations(rf.space.domain) if self.physical else None
         if pts is not None and self._extra:
             pts = np.concatenate([pts, *self._extra])
-        deadline = self._polish_deadline()
         for _ in range(rounds):
-            if deadline is not None and time.perf_counter() > deadline:
-                self._polish_timed_out = True
+            if _past(deadline):
                 return None
             cand = polish_fit(rf, seg, j, positive_at=pts, solver=self.solver,
                               deadline=deadline)
             if cand is None:
-                if deadline is not None and time.perf_counter() > deadline:
-                    self._polish_timed_out = True
                 return None
             ver = self._verify(cand, seg, j)
             if ver.verified:
@@ -466,7 +465,7 @@ class BRDFFitter(RationalFitter):
         """A candidate that meets every segment but goes negative or through a pole
         between the samples: its least-squares polish under the validity rows is
         often valid at the same size (the minimum-norm point is the wildest one)."""
-        return self._polish_rounds(rf, seg, j, rounds=3)
+        return self._polish_rounds(rf, seg, j, self._polish_deadline(), rounds=3)
 
     def _polished(self, res: FitResult, seg: Segments, j: int) -> FitResult:
         """``res`` with its rational replaced by the least-squares polish when that
@@ -481,10 +480,10 @@ class BRDFFitter(RationalFitter):
                 return float(np.sqrt(np.mean((r(seg.x) - y) ** 2)))
 
         before = score(rf)
-        self._polish_timed_out = False
-        out = self._polish_rounds(rf, seg, j)
+        deadline = self._polish_deadline()
+        out = self._polish_rounds(rf, seg, j, deadline)
         if out is None:
-            if self._polish_timed_out:
+            if _past(deadline):
                 return replace(res, message=f"{res.message}; least-squares polish "
                                             "stopped at the time limit (fit unpolished)")
             return res
@@ -576,6 +575,10 @@ class BRDFFitter(RationalFitter):
               and not ver.denominator_sign_changes)
         return replace(ver, verified=ok,
                        denominator_sign_changes=ver.denominator_sign_changes or chk.min_q <= 0)
+
+
+def _past(deadline: float | None) -> bool:
+    return deadline is not None and time.perf_counter() > deadline
 
 
 class _BRDFSystems:
