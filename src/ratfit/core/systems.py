@@ -92,6 +92,26 @@ class LazyRows:
         return out
 
 
+class _BuiltOnRead:
+    """An attribute that may be set to :class:`LazyRows` and reads as their array,
+    built on the first read (stored in ``_<name>``)."""
+
+    def __set_name__(self, owner: type, name: str) -> None:
+        self.slot = "_" + name
+
+    def __get__(self, obj: object, owner: type | None = None) -> Array:
+        if obj is None:
+            return self  # type: ignore[return-value]
+        value = getattr(obj, self.slot)
+        if isinstance(value, LazyRows):
+            value = value.build()
+            setattr(obj, self.slot, value)
+        return value
+
+    def __set__(self, obj: object, value: Array | LazyRows) -> None:
+        setattr(obj, self.slot, value)
+
+
 class AppendedRows:
     """``base`` plus unit rows on one coefficient block each: ``q(z) / ||psi(z)|| >= delta``
     (rows of ``psi``, acting on c[n:]) and ``p(z) / ||phi(z)|| >= delta`` (``phi``, on c[:n]).
@@ -118,25 +138,8 @@ class AppendedRows:
 
     # psi and phi may be LazyRows: built on first use (a split decided on the data's
     # rows alone, as every infeasible one is, never evaluates a large grid)
-    @property
-    def psi(self) -> Array:
-        if isinstance(self._psi, LazyRows):
-            self._psi = self._psi.build()
-        return self._psi
-
-    @psi.setter
-    def psi(self, value: Array | LazyRows) -> None:
-        self._psi = value
-
-    @property
-    def phi(self) -> Array:
-        if isinstance(self._phi, LazyRows):
-            self._phi = self._phi.build()
-        return self._phi
-
-    @phi.setter
-    def phi(self, value: Array | LazyRows) -> None:
-        self._phi = value
+    psi = _BuiltOnRead()
+    phi = _BuiltOnRead()
 
     def _counts(self) -> tuple[int, int]:
         return len(self._psi), len(self._phi)
