@@ -97,13 +97,19 @@ def test_slice_and_error_plots(dense, tmp_path):
     _check_png(p, (400, 800))
 
 
-def test_cli_plot_and_report(dense, tmp_path):
-    x, y, _, doc = dense
-    fit = tmp_path / "fit.json"
+def _fit_and_data_files(x, y, doc, folder):
+    """The dense fit saved as ``fit.json`` and its data as ALTA text ``data.dat``."""
+    fit = folder / "fit.json"
     save_fit(fit, doc)
-    data = tmp_path / "data.dat"
+    data = folder / "data.dat"
     rows = "\n".join(" ".join(repr(float(v)) for v in r) for r in np.hstack([x, y]))
     data.write_text(f"#DIM 2 1\n#PARAM_IN {PARAM}\n#PARAM_OUT INV_STERADIAN\n{rows}\n")
+    return fit, data
+
+
+def test_cli_plot_and_report(dense, tmp_path):
+    x, y, _, doc = dense
+    fit, data = _fit_and_data_files(x, y, doc, tmp_path)
     runner = CliRunner()
     for kind in ("slice", "error", "polar", "sphere"):
         out = tmp_path / f"{kind}.png"
@@ -171,11 +177,7 @@ def test_report_without_albedo_has_no_empty_albedo_plot(dense, tmp_path, monkeyp
 
     monkeypatch.setattr(albedo_mod, "directional_albedo", nowhere)
     x, y, _, doc = dense
-    fit = tmp_path / "fit.json"
-    save_fit(fit, doc)
-    data = tmp_path / "data.dat"
-    rows = "\n".join(" ".join(repr(float(v)) for v in r) for r in np.hstack([x, y]))
-    data.write_text(f"#DIM 2 1\n#PARAM_IN {PARAM}\n#PARAM_OUT INV_STERADIAN\n{rows}\n")
+    fit, data = _fit_and_data_files(x, y, doc, tmp_path)
     r = CliRunner().invoke(main, ["report", str(fit), "--data", str(data), "-o",
                                   str(tmp_path / "rep")])
     assert r.exit_code == 0, r.output
