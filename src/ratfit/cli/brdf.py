@@ -47,8 +47,9 @@ _ISOTROPIC_DEFAULT = {"CARTESIAN": "ISOTROPIC_TV_TL_DPHI"}
                    "better verified fit (narrower segments, then fewer coefficients).")
 @click.option("--dt", type=float,
               help="Relative segment width: [(1-dt) y, (1+dt) y]. Without --dt, --abs-width "
-                   "and --floor-rel: the file's own intervals, else --dt 0.05 --floor-rel "
-                   "0.002.")
+                   "and --floor-rel: the file's own intervals, else 0.05 (widened where "
+                   "nearby samples need it) with --floor-rel 0.002 (0.001 in "
+                   "RUSIN_TH_TD_PD).")
 @click.option("--abs-width", type=float,
               help="Absolute half-width (floor); with --dt each segment takes the larger.")
 @click.option("--floor-rel", type=float,
