@@ -101,3 +101,32 @@ def test_polish_gives_up_past_its_deadline() -> None:
     rf, seg = _fit(x, np.exp(2 * x) / (1.3 - x), 0.05)
     assert polish_fit(rf, seg, 0, deadline=time.perf_counter() + 60) is not None
     assert polish_fit(rf, seg, 0, deadline=time.perf_counter() - 1) is None
+
+
+def test_blocked_r_factor_and_band_rows_match_the_stacked_matrices() -> None:
+    """The polish's passes in blocks (TSQR, band rows built per active set) give the
+    numbers of the one-matrix form they replaced."""
+    from ratfit.core import polish
+
+    rng = np.random.default_rng(3)
+    N, n, m = 5 * polish._BLOCK + 17, 4, 3  # beyond 4 blocks: the blocked path
+    P, Q = rng.normal(size=(N, n)), rng.normal(size=(N, m))
+    tail = 1e-3 * np.eye(n + m)
+    M = np.hstack([P, Q])
+    R = polish._tall_r(M, tail)
+    R_ref = np.linalg.qr(np.vstack([M, tail]), mode="r")
+    assert np.allclose(np.abs(R), np.abs(R_ref), rtol=1e-10, atol=1e-10)
+    lo, hi = rng.uniform(0.5, 1.0, N), rng.uniform(1.5, 2.0, N)
+    grid, h = rng.normal(size=(5, n + m)), rng.uniform(size=5)
+    band = polish._BandRows(P, Q, lo, hi, grid, h)
+    G_lo = np.hstack([P, -lo[:, None] * Q])
+    G_hi = np.hstack([-P, hi[:, None] * Q])
+    ref = np.vstack([G_lo / np.linalg.norm(G_lo, axis=1)[:, None],
+                     G_hi / np.linalg.norm(G_hi, axis=1)[:, None], grid])
+    idx = np.array([0, 7, N - 1, N, N + 5, 2 * N - 1, 2 * N, 2 * N + 4])
+    rows, hh = band.rows(idx)
+    assert np.allclose(rows, ref[idx], rtol=1e-12, atol=1e-14)
+    assert np.array_equal(hh, np.concatenate([np.zeros(6), h[[0, 4]]]))
+    c = rng.normal(size=n + m)
+    res = band.data_residuals(P @ c[:n], Q @ c[n:])
+    assert np.allclose(res, ref[:2 * N] @ c, rtol=1e-9, atol=1e-12)

@@ -33,6 +33,7 @@ from ratfit.core.results import FitResult
 from ratfit.core.segments import Segments
 from ratfit.core.solvers import first_available
 from ratfit.core.systems import AppendedRows, LazyRows, RowSystem
+from ratfit.core.threads import one_blas_thread
 from ratfit.core.validation import check_width
 from ratfit.core.verify import Verification, verify
 from ratfit.errors import FileFormatError, InputError
@@ -403,8 +404,10 @@ class BRDFFitter(RationalFitter):
         self._checks: dict[int, Any] = {}
         super().fit(segments)
         if self.polish:
-            self.results_ = [self._polished(r, segments, j) if r.success else r
-                             for j, r in enumerate(self.results_)]
+            # small matrices: BLAS worker threads only spin (see ratfit.core.threads)
+            with one_blas_thread():
+                self.results_ = [self._polished(r, segments, j) if r.success else r
+                                 for j, r in enumerate(self.results_)]
         # what the dense validity check said about each channel's chosen fit
         self.validity_ = [
             self._checks.get(id(r.rational)) if r.rational is not None else None
