@@ -63,6 +63,25 @@ def test_arnoldi_total_order_spans_the_same_space_in_2d():
                            t, np.ones(400), 5)
 
 
+def test_arnoldi_design_in_blocks_reproduces_the_build(monkeypatch):
+    """design and evaluate run in blocks of points: across block edges (and a last,
+    short block) they give the orthonormal columns the build made, to rounding."""
+    import ratfit.core.arnoldi as arnoldi
+
+    monkeypatch.setattr(arnoldi, "_BLOCK", 64)
+    rng = np.random.default_rng(5)
+    space = PolynomialSpace("legendre", [[0, 1], [0, 1], [0, 1]], "total")
+    t = rng.uniform(-1, 1, (1000, 3))
+    w = rng.uniform(0.2, 1.0, 1000)
+    basis, Q = ArnoldiBasis.build(space, t, w, 20)
+    D = basis.design(t, 20, window=True)
+    assert D.shape == (1000, 20)
+    assert np.abs(w[:, None] * D - Q).max() < 1e-10
+    c = rng.normal(size=12)
+    assert np.allclose(basis.evaluate(t, c, window=True), D[:, :12] @ c, rtol=0, atol=1e-11)
+    assert basis.design(t[:0], 5, window=True).shape == (0, 5)
+
+
 def test_arnoldi_build_refuses_more_functions_than_points():
     space = PolynomialSpace("legendre", [[0.0, 1.0]])
     with pytest.raises(ratfit.InputError, match="cannot carry 6"):

@@ -43,6 +43,12 @@ Array = NDArray[np.float64]
 _MULX = {"legendre": _leg.legmulx, "chebyshev": _cheb.chebmulx, "monomial": _poly.polymulx}
 
 
+# Points per block of a design evaluation: the block's k rows stay in cache while the
+# recurrence reads them back (262 144 points, 35 functions: 0.065 s in blocks of 4096,
+# 0.14 s in blocks of 32 768, 0.2 s in one piece).
+_BLOCK = 4096
+
+
 class ArnoldiBasis:
     """The first ``k`` polynomials of ``space``'s graded order, orthonormalised on data.
 
@@ -119,21 +125,9 @@ class ArnoldiBasis:
         return cls(space, H, parents, dims), Q.T
 
     # -- evaluation ---------------------------------------------------------------------
-    def design(self, x: ArrayLike, count: int | None = None, *, window: bool = False) -> Array:
-        """Values (N, count) of the first ``count`` basis polynomials (unweighted)."""
-        k = self.size if count is None else int(count)
-        if k > self.size:
-            raise ValueError(f"basis has {self.size} functions, asked for {k}")
-        t = np.asarray(x, dtype=float) if window else self.space.to_window(x)
-        if t.ndim == 1:
-            t = t[:, None]
-        # Built as (k, N) rows and returned transposed (Fortran order): every step
-        # reads whole contiguous columns, 4x faster than strided (N, k) columns
-        # on 262 144 points.
-        tt = np.ascontiguousarray(t.T)
-        out = np.empty((k, t.shape[0]))
-        if k == 0:
-            return out.T
+    def _block(self, tt: Array, k: int) -> Array:
+        """Rows (k, b): the first ``k`` polynomials at the window points ``tt`` (d, b)."""
+        out = np.empty((k, tt.shape[1]))
         H = self.H
         out[0] = 1.0 / H[0, 0]
         for i in range(1, k):
@@ -141,11 +135,41 @@ class ArnoldiBasis:
             v -= H[:i, i] @ out[:i]
             v /= H[i, i]
             out[i] = v
+        return out
+
+    def _window_rows(self, x: ArrayLike, count: int | None, window: bool) -> tuple[Array, int]:
+        k = self.size if count is None else int(count)
+        if k > self.size:
+            raise ValueError(f"basis has {self.size} functions, asked for {k}")
+        t = np.asarray(x, dtype=float) if window else self.space.to_window(x)
+        if t.ndim == 1:
+            t = t[:, None]
+        return np.ascontiguousarray(t.T), k
+
+    def design(self, x: ArrayLike, count: int | None = None, *, window: bool = False) -> Array:
+        """Values (N, count) of the first ``count`` basis polynomials (unweighted)."""
+        # Built as (k, N) rows and returned transposed (Fortran order): every step
+        # reads whole contiguous columns, 4x faster than strided (N, k) columns
+        # on 262 144 points; and in blocks of points whose k rows stay in cache
+        # while the recurrence reads them back.
+        tt, k = self._window_rows(x, count, window)
+        out = np.empty((k, tt.shape[1]))
+        if k == 0:
+            return out.T
+        for s in range(0, tt.shape[1], _BLOCK):
+            out[:, s:s + _BLOCK] = self._block(tt[:, s:s + _BLOCK], k)
         return out.T
 
     def evaluate(self, x: ArrayLike, coef: ArrayLike, *, window: bool = False) -> Array:
+        """sum_k coef_k phi_k(x), block by block (no N x k matrix)."""
         c = np.asarray(coef, dtype=float)
-        return self.design(x, c.size, window=window) @ c
+        tt, k = self._window_rows(x, c.size, window)
+        out = np.zeros(tt.shape[1])
+        if k == 0:
+            return out
+        for s in range(0, tt.shape[1], _BLOCK):
+            out[s:s + _BLOCK] = c @ self._block(tt[:, s:s + _BLOCK], k)
+        return out
 
     def to_family(self, coef: ArrayLike) -> Array:
         """Graded coefficients, in ``space``'s family, of sum_i coef_i phi_i."""
