@@ -69,6 +69,14 @@ _NEEDS_THETA_L = ("full", "isotropic", "tv_tl")
 # 0.1 % (5 of 15 at 0.2 %), with 7-34 coefficients per channel.
 HALF_VECTOR = "RUSIN_TH_TD_PD"
 HALF_VECTOR_FLOOR_REL = 0.001
+# A default fit this small (per channel, at most) whose floor covers most samples has
+# accuracy to spare: its segments are absolute widths almost everywhere, as wide as
+# the floor. The floor is then halved (at most FLOOR_REFINEMENTS times) while the fit
+# stays verified and small. mystique (99.7 % of the samples under 0.1 % of the peak):
+# 3+4 / 3+4 / 1+6 coefficients, log RMSE 0.073 against lambert+ggx's 0.046; at
+# 0.05 % 3+5 / 3+5 / 3+5, log RMSE 0.017, and every error better than the models'.
+SMALL_FIT_TOTAL = 12
+FLOOR_REFINEMENTS = 2
 _HAS_HALF_VECTOR_ALTERNATIVE = ("ISOTROPIC_TV_TL_DPHI", "ISOTROPIC_TL_TV_PROJ_DPHI")
 
 
@@ -307,9 +315,51 @@ def fit_brdf_auto(datasets: list[Dataset], **kw: Any):
         if ok and (best is None or (band, total) < (best[3], best[4])):
             best = (fitter, seg, meta, band, total)
     assert last is not None
+    if best is not None and _widths_defaulted(kw):
+        best = _narrow_floor(best, datasets, tried, kw)
     fitter, seg, meta = last if best is None else best[:3]
     meta["candidates"] = tried
     return fitter, seg, meta
+
+
+def _widths_defaulted(kw: dict[str, Any]) -> bool:
+    """No width and no size from the caller: the defaults are ratfit's to choose."""
+    return all(kw.get(k) is None for k in ("dt", "abs_width", "floor_rel", "n", "m", "total"))
+
+
+def _floor_covers_most(seg: Segments, floor_rel: float) -> bool:
+    """More than half of some channel's samples lie under its floor."""
+    top = np.max(np.abs(seg.center), axis=0)
+    return bool(np.any(np.mean(np.abs(seg.center) < floor_rel * top, axis=0) > 0.5))
+
+
+def _narrow_floor(best: tuple, datasets: list[Dataset], tried: list[dict[str, Any]],
+                  kw: dict[str, Any]) -> tuple:
+    """The kept default fit, refitted with its floor halved while it is small
+    (:data:`SMALL_FIT_TOTAL`) and its floor covers most samples: narrower segments,
+    kept only when verified. Each refit is recorded in ``tried``."""
+    for _ in range(FLOOR_REFINEMENTS):
+        fitter, seg, meta, band, total = best
+        if (max(r.n + r.m for r in fitter.results_) > SMALL_FIT_TOTAL
+                or not band[1] or not _floor_covers_most(seg, band[1])):
+            break
+        ds = next(d for d in datasets
+                  if str(d.meta.get("param_in", "UNKNOWN")) == meta["parametrization"])
+        floor = band[1] / 2
+        f2, seg2, meta2 = fit_brdf(ds, **{**kw, "dt": band[0], "floor_rel": floor})
+        ok = f2.success_
+        total2 = sum(r.n + r.m for r in f2.results_)
+        tried.append({"parametrization": meta2["parametrization"], "verified": ok,
+                      "coefficients": total2 if ok else None, "dt": band[0],
+                      "floor_rel": floor, "searched_up_to": kw.get("max_total"),
+                      "narrowed_floor_from": band[1]})
+        if not ok:
+            break
+        meta2["segments"]["default"] = True
+        meta2["segments"]["narrowed_floor_from"] = float(meta["segments"].get(
+            "narrowed_floor_from") or band[1])
+        best = (f2, seg2, meta2, (band[0], floor), total2)
+    return best
 
 
 def subset_status(points: int, of: int) -> str:

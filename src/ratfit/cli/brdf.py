@@ -129,6 +129,10 @@ def brdf_fit(input_path: Path, output: Path | None, fmt: str | None, param: str 
                    "--param overrides)", err=True)
     if len(datasets) > 1 and not as_json:
         def said(c: dict[str, Any]) -> str:
+            if c.get("narrowed_floor_from"):
+                got = (f"{c['coefficients']} coefficients" if c["verified"]
+                       else "no verified fit, not kept")
+                return f"floor {c['floor_rel']:g}: {got}"
             if c.get("skipped"):
                 return f"{c['parametrization']}: not tried, {c['skipped']}"
             if c["verified"]:
@@ -145,6 +149,9 @@ def brdf_fit(input_path: Path, output: Path | None, fmt: str | None, param: str 
         why = "" if widths["dt"] == DEFAULT_DT else (
             f", widened from {DEFAULT_DT:g} so that samples measured at nearly the same "
             "point have overlapping segments")
+        if widths.get("narrowed_floor_from"):
+            why += (f"; floor narrowed from {widths['narrowed_floor_from']:g}: the fit "
+                    "there was small and most samples lay under the floor")
         click.echo(f"segments: y +- {widths['dt']:.3g} y with a floor of "
                    f"{widths['floor_rel']:g} x the channel's largest value (default{why}; "
                    "--dt, --abs-width, --floor-rel override)", err=True)
