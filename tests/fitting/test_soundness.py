@@ -6,6 +6,7 @@ data as stored (floats are exact rationals), independently of ratfit's own code.
 
 from __future__ import annotations
 
+import re
 from fractions import Fraction
 
 import numpy as np
@@ -258,3 +259,37 @@ def test_one_point_near_zero_on_a_linear_grid_stays_in_x() -> None:
     y = 3.0 + 0.1 * x
     res = RationalFitter().fit(Segments.from_relative(x, y, 1e-3)).result_
     assert res.success and res.rational.space.variable == "x" and res.n + res.m == 3
+
+
+def test_a_time_limited_fit_says_so_in_the_table_and_the_json(monkeypatch, tmp_path) -> None:
+    """A fit found before the time limit ran out is verified, but its total is not
+    shown minimal: the table's verified column says "yes*" with the reason below it,
+    the JSON says time_limited; a search that finished says neither."""
+    import json
+    import time
+
+    from conftest import run_cli
+
+    from ratfit.core import solvers
+
+    def slow(A, b):
+        time.sleep(0.1)
+        return solvers._quadprog(A, b)
+
+    monkeypatch.setitem(solvers.SOLVERS, "slow-quadprog", ("quadprog", slow))
+    x = np.linspace(0.0, 1.0, 200)
+    data = tmp_path / "d.csv"
+    np.savetxt(data, np.column_stack([x, np.exp(2 * x) / (1.3 - x)]), delimiter=",")
+    common = ("fit", data, "--dt", "1e-4", "--solver", "slow-quadprog", "--cross-check",
+              "none", "--jobs", "1")
+    # the staircase: a fit at the bracket's second probe, about 1.6 s of walk below it
+    cut = run_cli(*common, "-o", tmp_path / "a.json", "--time-limit", "1.5")
+    assert cut.exit_code == 0, cut.output
+    assert re.search(r"^\s*y0\s.*\byes\*", cut.stdout, re.M), cut.stdout
+    said = " ".join(cut.stdout.split())  # rich wraps at the terminal's width
+    assert "y0*:" in said and "the total may not be minimal" in said
+    doc = json.loads(run_cli(*common, "--time-limit", "1.5", "--json").stdout)
+    assert doc["channels"][0]["time_limited"] and doc["channels"][0]["verified"]
+    full = run_cli(*common, "-o", tmp_path / "b.json")
+    assert full.exit_code == 0 and "yes*" not in full.stdout
+    assert re.search(r"^\s*y0\s.*\byes\b", full.stdout, re.M), full.stdout

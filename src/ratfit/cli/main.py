@@ -274,7 +274,8 @@ def _print_report(results, out: Path | None, verified_as: str | None = None) -> 
         s = r.summary()
         rows.append([
             s["channel"], str(s["n"]), str(s["m"]), str(s["total"]),
-            (verified_as or "yes") if s["verified"] else "NO", _fmt(s["max_violation"]),
+            ((verified_as or "yes") + ("*" if r.time_limited else "")) if s["verified"]
+            else "NO", _fmt(s["max_violation"]),
             _fmt(s["linf"]),
             _fmt(s["l2"]), _fmt(s["max_rel_error"]), _fmt(s["delta"]), str(s["qp_solves"]),
             f"{s['seconds']:.3f}",
@@ -287,6 +288,8 @@ def _print_report(results, out: Path | None, verified_as: str | None = None) -> 
     for r in results:
         if not r.success:
             con.print(f"[bold red]{r.channel}[/]: {r.message}")
+        elif r.time_limited:
+            con.print(f"[yellow]{r.channel}*[/]: {r.message}", highlight=False)
         for d in r.disagreements:
             con.print(f"[yellow]{r.channel} solver disagreement[/] {d}")
     if out is not None:

@@ -43,6 +43,8 @@ class FitResult:
         Conditioning of the deciding QP (delta = 1 / cond(A)).
     history : tuple of dict
         Every split tested, with its status and deciding method.
+    time_limited : bool
+        The time limit ended the search: a verified fit whose total may not be minimal.
 
     Examples
     --------
@@ -79,6 +81,8 @@ class FitResult:
     # A checked Farkas certificate (ratfit.fitting.certificate.Certificate.summary()) when
     # status 1 comes from a proven infeasibility rather than a numerical failure.
     infeasible_proof: dict | None = None
+    # The search's time limit ran out: the fit is verified, its total not shown minimal.
+    time_limited: bool = False
 
     @property
     def total(self) -> int:
@@ -135,6 +139,7 @@ class FitResult:
             "disagreements": list(self.disagreements),
             "seconds": round(self.seconds, 6),
             "infeasible_proof": self.infeasible_proof,
+            "time_limited": self.time_limited,
         }
 
 

@@ -949,10 +949,11 @@ class SearchEngine:
         if good:
             res = self.result(good[:1], lo, hi, secs)
             return dataclasses.replace(
-                res, message=f"{res.message}; {note}: the total may not be minimal")
+                res, message=f"{res.message}; {note}: the total may not be minimal",
+                time_limited=True)
         res = self.result([], lo, hi, secs, certify=False)
         return dataclasses.replace(
-            res, message=f"{STATUS_MESSAGES[1]}: {note}; no verified fit found "
+            res, time_limited=True, message=f"{STATUS_MESSAGES[1]}: {note}; no verified fit found "
                          "(not a proof that none exists; raise --time-limit)")
 
     def _closest(self) -> Candidate:
