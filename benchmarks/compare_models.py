@@ -2,8 +2,9 @@
 
 For each Cornell material: `ratfit brdf fit DATA` with no options (what
 `ratfit.brdf.fitter.fit_brdf_auto` does without widths: RUSIN_TH_TD_PD with 5 %
-segments and a floor of 0.1 % of the channel's max, ISOTROPIC_TV_TL_DPHI (floor
-0.2 %) only if that fails; physical validity, the least-squares polish), and
+segments and a floor of 0.1 % of the channel's max, halved while the fit is small
+and the floor covers most samples; ISOTROPIC_TV_TL_DPHI (floor 0.2 %) only if that
+fails; physical validity, the least-squares polish), and
 least-squares fits of lambert+ggx and lambert+beckmann
 (`ratfit.brdf.analytic_models`, 6 random starts). Per channel it prints the
 coefficients, RMSE, log RMSE and cos RMSE of the rational fit, the same errors of
@@ -43,7 +44,8 @@ def run(path: Path, jobs: int | None):
     # the same samples in the same order in every parametrization
     assert all(np.array_equal(o.y, ds.y) for o in others)
     print(f"{path.stem}: " + "; ".join(
-        f"{c['parametrization']} " + (c.get("skipped") or str(c["coefficients"] or "no fit"))
+        f"{c['parametrization']} floor {c['floor_rel']:g} "
+        + (c.get("skipped") or str(c["coefficients"] or "no fit"))
         for c in meta["candidates"]))
     if not fitter.success_:
         return ds, None, {}, secs

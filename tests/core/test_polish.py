@@ -74,11 +74,18 @@ def test_polish_is_never_outside_its_band(a: float, c: float, dt: float) -> None
     if pol is None:  # allowed: the caller keeps the fit it has
         return
     assert verify(pol, seg, channel=0).verified
-    w = seg.hi[:, 0] - seg.lo[:, 0]
-    r = pol(seg.x)
-    # tau = 0.02, or tau / 20 where the minimal size leaves no room for more
-    assert np.all(r >= seg.lo[:, 0] + 0.001 * w - 1e-9 * y.max())
-    assert np.all(r <= seg.hi[:, 0] - 0.001 * w + 1e-9 * y.max())
+    lo, hi = seg.lo[:, 0], seg.hi[:, 0]
+    w = hi - lo
+    r, r0 = pol(seg.x), rf(seg.x)
+    # Each pass's QP point keeps tau = 0.02 of every width off the ends (or tau / 20,
+    # or half the start's smallest margin, where the minimal size leaves no room),
+    # and the line search's point is a positive-weight average of it and the start
+    # at every sample (weights q0 (1 - a) / q, q1 a / q): no sample gets closer to
+    # an end than both of them.
+    start = np.minimum(r0 - lo, hi - r0)
+    keep = np.minimum(start, np.minimum(0.001, 0.5 * np.min(start / w)) * w)
+    assert np.all(r - lo >= keep - 1e-9 * y.max())
+    assert np.all(hi - r >= keep - 1e-9 * y.max())
 
 
 @pytest.mark.parametrize("tau", [0.0, 0.1])
@@ -101,6 +108,70 @@ def test_polish_gives_up_past_its_deadline() -> None:
     rf, seg = _fit(x, np.exp(2 * x) / (1.3 - x), 0.05)
     assert polish_fit(rf, seg, 0, deadline=time.perf_counter() + 60) is not None
     assert polish_fit(rf, seg, 0, deadline=time.perf_counter() - 1) is None
+
+
+def test_cone_program_gives_the_same_polish_as_the_qp() -> None:
+    """The fallback (Clarabel's cone program in c) solves the problem the whitened QP
+    solves: the same fit, to the solvers' accuracy."""
+    pytest.importorskip("clarabel")
+    x = np.linspace(0.0, 1.0, 300)
+    y = np.exp(2 * x) / (1.3 - x)
+    rf, seg = _fit(x, y, 0.05)
+    qp = polish_fit(rf, seg, 0, method="qp")
+    cone = polish_fit(rf, seg, 0, method="socp")
+    assert qp is not None and cone is not None
+    assert verify(cone, seg, channel=0).verified
+    assert _rmse(cone, seg) < 0.7 * _rmse(rf, seg)
+    assert abs(_rmse(cone, seg) - _rmse(qp, seg)) < 1e-3 * _rmse(qp, seg)
+    t = np.linspace(0.0, 1.0, 1000)
+    assert np.max(np.abs(cone(t) - qp(t))) < 1e-3 * np.max(np.abs(qp(t)))
+
+
+def test_polish_uses_the_cone_program_where_the_qp_fails(monkeypatch) -> None:
+    pytest.importorskip("clarabel")
+    import ratfit.core.polish as polish
+
+    x = np.linspace(0.0, 1.0, 300)
+    y = np.exp(2 * x) / (1.3 - x)
+    rf, seg = _fit(x, y, 0.05)
+    monkeypatch.setattr(polish, "_whitened", lambda Rinv, solver: lambda G, h, e: None)
+    assert polish_fit(rf, seg, 0, method="qp") is None
+    pol = polish_fit(rf, seg, 0)
+    assert pol is not None and verify(pol, seg, channel=0).verified
+    assert _rmse(pol, seg) < 0.7 * _rmse(rf, seg)
+
+
+def test_polish_asks_p_above_a_margin_at_the_positivity_points(monkeypatch) -> None:
+    """A row p >= 0 met to the solver's tolerance leaves p at -1e-13 where it touches
+    0: a negative BRDF to the validity check, found again beside every point added
+    (garnet_red G: four rounds, no polish). The rows ask p >= 1e-6 of the largest
+    value, or half the start's p where that is smaller, so the start stays feasible."""
+    import ratfit.core.polish as polish
+
+    x = np.linspace(0.0, 1.0, 300)
+    y = 1.0 + np.sin(3 * x) ** 2
+    rf, seg = _fit(x, y, 0.03)
+    extra = np.linspace(0.0, 1.5, 301)[:, None]
+    seen = []
+    real = polish._solve_band
+
+    def spy(P, Q, lo, hi, qp, tau, grid, h_grid, q_floor, c, *rest):
+        seen.append((grid, h_grid, q_floor, c, Q))
+        return real(P, Q, lo, hi, qp, tau, grid, h_grid, q_floor, c, *rest)
+
+    monkeypatch.setattr(polish, "_solve_band", spy)
+    assert polish_fit(rf, seg, 0, positive_at=extra) is not None
+    grid, h, q_floor, c, Q = seen[0]
+    p_rows = np.arange(len(h)) >= len(h) - len(extra)  # the p rows come last
+    start = grid[p_rows] @ c
+    assert np.all(start > 0)
+    pn = np.linalg.norm(polish._design(rf, extra)[0], axis=1)  # rows: p / ||design row||
+    expect = np.minimum(1e-6 * y.max() / pn, 0.5 * start)
+    assert np.allclose(h[p_rows], expect, rtol=1e-9) and np.all(h[p_rows] > 0)
+    # q rows (at the data, and at the extra points): 1 % of the start's smallest q on
+    # the data (q scaled to mean 1 there)
+    assert np.isclose(q_floor, 0.01 * np.min(Q @ c[rf.n:]), rtol=1e-9)
+    assert np.allclose(h[~p_rows], q_floor, rtol=1e-12)
 
 
 def test_blocked_r_factor_and_band_rows_match_the_stacked_matrices() -> None:
@@ -130,3 +201,27 @@ def test_blocked_r_factor_and_band_rows_match_the_stacked_matrices() -> None:
     c = rng.normal(size=n + m)
     res = band.data_residuals(P @ c[:n], Q @ c[n:])
     assert np.allclose(res, ref[:2 * N] @ c, rtol=1e-9, atol=1e-12)
+
+
+def test_band_rows_keep_q_above_its_floor_at_the_data() -> None:
+    """With a q floor the band has N more rows, (0, Q_i) >= q_floor, between the 2N
+    band rows and the positivity rows: p and q both near 0 at a sample meet the band
+    rows for any value of r = p / q."""
+    from ratfit.core import polish
+
+    rng = np.random.default_rng(5)
+    N, n, m = 50, 3, 2
+    P, Q = rng.normal(size=(N, n)), rng.normal(size=(N, m))
+    lo, hi = rng.uniform(0.5, 1.0, N), rng.uniform(1.5, 2.0, N)
+    grid, h = rng.normal(size=(4, n + m)), rng.uniform(size=4)
+    band = polish._BandRows(P, Q, lo, hi, grid, h, q_floor=0.25)
+    assert band.count == 3 * N + 4
+    idx = np.array([2 * N, 2 * N + 7, 3 * N - 1, 3 * N, 3 * N + 3])
+    rows, hh = band.rows(idx)
+    assert np.allclose(rows[:3, :n], 0.0) and np.allclose(rows[:3, n:], Q[[0, 7, N - 1]])
+    assert np.allclose(rows[3:], grid[[0, 3]])
+    assert np.allclose(hh, [0.25, 0.25, 0.25, h[0], h[3]])
+    c = rng.normal(size=n + m)
+    res = band.residuals(c, P @ c[:n], Q @ c[n:])
+    assert np.allclose(res[2 * N:3 * N], Q @ c[n:] - 0.25)
+    assert np.allclose(res[3 * N:], grid @ c - h)

@@ -572,13 +572,19 @@ class SearchEngine:
         if c is not None:
             rf = system.to_rational(n, m, c)
             ver = self.parts.verifier(rf, self.seg, self.channel)
-            if (self.parts.repair is not None and not ver.verified
-                    and ver.n_violations == 0 and np.isfinite(ver.linf)
-                    and (self.deadline is None or time.perf_counter() < self.deadline)):
-                fixed = self.parts.repair(rf, self.seg, self.channel)
-                if fixed is not None:
-                    rf, ver = fixed
         return att, rf, ver
+
+    def _repaired(self, out: Candidate) -> Candidate:
+        """``out`` with a candidate that meets every segment but failed the
+        verifier's other checks (a BRDF negative or through a pole between the
+        samples) replaced by ``parts.repair``'s verified one, when there is one."""
+        att, rf, ver = out
+        if (self.parts.repair is None or rf is None or ver is None or ver.verified
+                or ver.n_violations or not np.isfinite(ver.linf)
+                or (self.deadline is not None and time.perf_counter() > self.deadline)):
+            return out
+        fixed = self.parts.repair(rf, self.seg, self.channel)
+        return out if fixed is None else (att, *fixed)
 
     def _seed(self, n: int, m: int) -> Candidate:
         self.system.prepare(n, m)
@@ -615,7 +621,11 @@ class SearchEngine:
                 "solved again with the validity points its rejected candidate added"
             ] + again[0].messages
             out = again
-        return out
+        # The repair (a least-squares fit under the validity rows) comes after the
+        # solves again: its fit is valid but weighted by the rejected candidate's
+        # q, so it can be far worse (mystique B: RMSE 0.78) than the minimum-norm
+        # solve with the validity points (0.059), which the polish then improves.
+        return self._repaired(out)
 
     def _run_once(self, n: int, m: int) -> Candidate:
         system = self.split_system(n, m)
