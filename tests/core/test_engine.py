@@ -348,3 +348,18 @@ def test_addendum_function_values():
     assert addendum_function(np.array([0.0]))[0] == pytest.approx(0.1)
     expected = 1000 * np.exp(-1) + 0.1 * np.exp(-6400) + 0.1
     assert addendum_function(np.array([1.0]))[0] == pytest.approx(expected, rel=1e-12)
+
+
+def test_active_set_takes_the_same_rows_from_a_partial_sort():
+    """smallest() (argpartition) picks the rows a full argsort picked; NaN rows last."""
+    from ratfit.core.systems import smallest
+
+    rng = np.random.default_rng(7)
+    v = rng.normal(size=5000)
+    v[[3, 99]] = np.nan
+    for count in (1, 64, 4998):
+        got = np.sort(smallest(v, count))
+        assert np.array_equal(got, np.sort(np.argsort(v)[:count]))
+    assert not np.isin([3, 99], smallest(v, 4998)).any()
+    assert np.array_equal(np.sort(smallest(v, 10**6)), np.arange(5000))
+    assert smallest(v, 0).size == 0

@@ -38,6 +38,7 @@ from numpy.typing import ArrayLike, NDArray
 from ratfit.core.rational import RationalFunction
 from ratfit.core.segments import Segments
 from ratfit.core.solvers import solve_qp
+from ratfit.core.systems import smallest
 
 __all__ = ["polish_fit"]
 
@@ -390,9 +391,8 @@ def _solve_band(P: Array, Q: Array, lo: Array, hi: Array, qp: QPStep, tau: float
     mean_q = np.concatenate([np.zeros(n), Q.mean(axis=0)])
     # Start from the rows nearest to binding for the starting fit, spread over the data.
     slack = band.data_residuals(P @ c_start[:n], Q @ c_start[n:])
-    order = np.argsort(slack)
     active = np.zeros(band.count, dtype=bool)
-    active[order[: min(start_rows, order.size)]] = True
+    active[smallest(slack, start_rows)] = True
     batch = max(200, 8 * k)
     # Right-hand sides raised where the solver met an active row only to its own
     # tolerance: in z = R c coordinates an ill-conditioned H (a specular peak, q
@@ -423,7 +423,7 @@ def _solve_band(P: Array, Q: Array, lo: Array, hi: Array, qp: QPStep, tau: float
         if bad.size == 0 and not missed.any():
             break
         lift[missed] += 2.0 * -res[missed]
-        active[bad[np.argsort(res[bad])[:batch]]] = True
+        active[bad[smallest(res[bad], batch)]] = True
     else:
         return None
     return c

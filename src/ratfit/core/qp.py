@@ -25,7 +25,7 @@ from ratfit.core.bases import PolynomialSpace
 from ratfit.core.rational import RationalFunction
 from ratfit.core.segments import Segments
 from ratfit.core.solvers import first_available, solve_qp
-from ratfit.core.systems import PositiveDenominator, RowSystem, denominator_cuts
+from ratfit.core.systems import PositiveDenominator, RowSystem, denominator_cuts, smallest
 from ratfit.errors import InputError
 
 __all__ = [
@@ -327,7 +327,7 @@ def solve_fixed(
                 if miss.any():
                     bad = ridx[miss]
                     scaled = np.nan_to_num(res_s[miss] / nrm_s[miss], nan=-np.inf)
-                    in_set[bad[np.argsort(scaled)[:batch]]] = True
+                    in_set[bad[smallest(scaled, batch)]] = True
                     idx = np.flatnonzero(in_set)
                     batch = int(1.5 * batch)  # many rounds: take more rows each time
                     missed = True
@@ -348,7 +348,7 @@ def solve_fixed(
                 att.messages.append("solution violates rows of its own active set")
             break
         scaled = np.nan_to_num(res[bad] / norms_all[bad], nan=-np.inf)
-        in_set[bad[np.argsort(scaled)[:batch]]] = True
+        in_set[bad[smallest(scaled, batch)]] = True
         idx = np.flatnonzero(in_set)
         batch = int(1.5 * batch)
     else:
@@ -727,7 +727,8 @@ class ArnoldiSystem:
         U, V = self._full
         if self._norms is not None:  # the squares are only needed once
             return U @ c[:self.n], V @ c[self.n:], np.zeros(0), np.zeros(0)
-        return U @ c[:self.n], V @ c[self.n:], np.sum(U**2, 1), np.sum(V**2, 1)
+        return (U @ c[:self.n], V @ c[self.n:], np.einsum("ij,ij->i", U, U),
+                np.einsum("ij,ij->i", V, V))
 
     def _set_norms(self, uu: Array, vv: Array) -> None:
         if self._norms is None:

@@ -28,7 +28,7 @@ from ratfit.core.bases import PolynomialSpace
 from ratfit.core.rational import RationalFunction
 
 __all__ = ["AppendedRows", "LazyRows", "PositiveDenominator", "RowSystem", "denominator_cuts",
-           "domain_grid"]
+           "domain_grid", "smallest"]
 
 Array = NDArray[np.float64]
 
@@ -237,6 +237,18 @@ class PositiveDenominator(AppendedRows):
         self.z = np.vstack([self.z, z[keep]])
         self.psi = np.vstack([self.psi, psi[keep] / nrm[keep, None]])
         return int(keep.sum())
+
+
+def smallest(values: Array, count: int) -> NDArray[np.int64]:
+    """Indices of the ``count`` smallest entries of ``values``, in no particular order
+    (NaN counts as largest): an active set needs which rows, not their order, and a
+    partial sort of 2.2 million residuals is several times cheaper than a full one."""
+    count = max(int(count), 0)
+    if count >= values.size:
+        return np.arange(values.size)
+    if count == 0:
+        return np.zeros(0, dtype=np.int64)
+    return np.argpartition(values, count - 1)[:count]
 
 
 def domain_grid(dim: int, n_data: int) -> Array:
