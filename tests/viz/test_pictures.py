@@ -185,3 +185,24 @@ def test_report_without_albedo_has_no_empty_albedo_plot(dense, tmp_path, monkeyp
     assert "Directional albedo: not available" in page
     assert "albedo.png" not in page and not (tmp_path / "rep" / "albedo.png").exists()
     assert "src='spheres.png'" in page
+
+
+def test_slice_rows_pick_the_fullest_line_or_a_slab_on_scattered_data():
+    """A slice through the median sample of scattered data (Cornell in the half-vector
+    frame) held one or two samples. On a grid the line with the most samples is
+    taken; on scattered data the samples within 5 % of the span of the other axes."""
+    rng = np.random.default_rng(0)
+    g = np.linspace(0.0, 1.0, 12)
+    grid = np.array([(a, b) for a in g for b in g])
+    grid = np.vstack([grid, [[0.5, 0.123]]])  # one odd sample: its line holds one point
+    rows, at, slab = pic._slice_rows(grid, 0, None)
+    assert slab == 0.0 and rows.sum() == 12 and np.all(grid[rows, 1] == at[1])
+    pts = rng.uniform(size=(1439, 3))
+    rows, at, slab = pic._slice_rows(pts, 1, None)
+    assert slab == pic.SLICE_SLAB
+    assert any(np.array_equal(at, p) for p in pts)  # centred on a sample
+    assert rows.sum() >= 8  # about 1439 x 0.1 x 0.1 = 14 on average, the fullest of 256
+    assert np.all(np.abs(pts[rows][:, [0, 2]] - at[[0, 2]]) <= pic.SLICE_SLAB + 1e-12)
+    # a given point keeps the exact line through it
+    rows, at2, slab = pic._slice_rows(pts, 1, pts[7])
+    assert slab == 0.0 and rows.sum() == 1 and np.array_equal(at2, pts[7])

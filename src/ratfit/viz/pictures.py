@@ -194,20 +194,44 @@ class DataBRDF:
 
 
 # ---------------------------------------------------------------------------- 1-D slices
-def _slice_rows(x: Array, dim: int, at: Array | None) -> tuple[NDArray[np.bool_], Array]:
-    """Data rows on the line through ``at`` along ``dim`` (n-D), and that point."""
+# A slice shows data "on the line" when at least this many samples share the other
+# coordinates exactly; scattered data (a goniometer's Cornell samples in the
+# half-vector frame) has one or two there, and gets the samples of a slab instead.
+SLICE_MIN_POINTS = 8
+SLICE_SLAB = 0.05  # half-width of that slab, as a fraction of each other axis's span
+
+
+def _slice_rows(x: Array, dim: int,
+                at: Array | None) -> tuple[NDArray[np.bool_], Array, float]:
+    """Data rows on the line through ``at`` along ``dim`` (n-D), that point, and the
+    slab's half-width (a fraction of each other axis's span; 0: exactly on the line).
+
+    Without ``at``: the line the most samples lie on (ties: nearest the median
+    point); where no line holds :data:`SLICE_MIN_POINTS`, the slab of half-width
+    :data:`SLICE_SLAB` around a sample that holds the most samples."""
     if x.shape[1] == 1:
-        return np.ones(x.shape[0], bool), x[0]
+        return np.ones(x.shape[0], bool), x[0], 0.0
     others = [k for k in range(x.shape[1]) if k != dim]
-    if at is None:
-        centre = np.median(x, axis=0)
-        span = np.ptp(x, axis=0)
-        span[span == 0] = 1.0
-        at = x[np.argmin(np.sum(((x - centre) / span) ** 2, axis=1))]
     span = np.ptp(x, axis=0)
     span[span == 0] = 1.0
-    close = np.all(np.abs(x[:, others] - at[others]) <= 1e-6 * span[others], axis=1)
-    return close, at
+    t = x[:, others] / span[others]
+    if at is not None:
+        close = np.all(np.abs(t - at[others] / span[others]) <= 1e-6, axis=1)
+        return close, at, 0.0
+    centre = np.median(t, axis=0)
+    key = np.round(t * 1e6).astype(np.int64)
+    _, inverse, counts = np.unique(key, axis=0, return_inverse=True, return_counts=True)
+    inverse = inverse.ravel()
+    size = counts[inverse]  # how many samples share each sample's line
+    dist = np.sum((t - centre) ** 2, axis=1)
+    if size.max() >= SLICE_MIN_POINTS:
+        i = int(np.lexsort((dist, -size))[0])
+        return inverse == inverse[i], x[i], 0.0
+    # scattered: the slab around a sample (the 256 nearest the median point tried)
+    cand = np.argsort(dist)[:256]
+    inside = [np.all(np.abs(t - t[i]) <= SLICE_SLAB, axis=1) for i in cand]
+    best = int(np.argmax([int(m.sum()) for m in inside]))
+    return inside[best], x[cand[best]], SLICE_SLAB
 
 
 def plot_slice(saved: SavedFit, path: str | Path, *, x: ArrayLike | None = None,
@@ -227,8 +251,9 @@ def plot_slice(saved: SavedFit, path: str | Path, *, x: ArrayLike | None = None,
     dom = saved.space.domain
     xa = None if x is None else np.asarray(x, dtype=float).reshape(-1, d)
     at_pt = None if at is None else np.asarray(at, dtype=float)
+    slab = 0.0
     if xa is not None:
-        rows, at_pt = _slice_rows(xa, dim, at_pt)
+        rows, at_pt, slab = _slice_rows(xa, dim, at_pt)
     else:
         rows = None
         at_pt = dom.mean(axis=1) if at_pt is None else at_pt
@@ -250,7 +275,9 @@ def plot_slice(saved: SavedFit, path: str | Path, *, x: ArrayLike | None = None,
             axes[0].vlines(xs, la, ha, color="0.6", lw=1, label="segments")
             axes[1].fill_between(xs, la - ys, ha - ys, color="0.85", step="mid",
                                  label="allowed")
-        axes[0].plot(xs, ys, ".", ms=3, color="C0", label="data")
+        axes[0].plot(xs, ys, ".", ms=3, color="C0",
+                     label=f"data within {slab:.0%} of the line ({xs.size})" if slab
+                     else f"data ({xs.size})")
         err = rf(xa[rows][order]) - ys
         axes[1].plot(xs, err, ".-", ms=3, lw=0.8, color="C3", label="r - y")
         axes[1].axhline(0.0, color="k", lw=0.5)
@@ -258,7 +285,9 @@ def plot_slice(saved: SavedFit, path: str | Path, *, x: ArrayLike | None = None,
     names = _names(names, d)
     where = ", ".join(f"{names[k]}={at_pt[k]:.4g}" for k in range(d) if k != dim)
     axes[0].set_title(title or f"channel {saved.channels[channel].name}"
-                      + (f" along {names[dim]} at {where}" if where else ""))
+                      + (f" along {names[dim]} at {where}" if where else "")
+                      + ("\n(fit on the line; data and errors of the samples near it)"
+                         if slab else ""), fontsize=10)
     axes[0].set_ylabel(f"{saved.channels[channel].name}")
     axes[0].legend(fontsize=8)
     axes[1].set_xlabel(names[dim])
