@@ -121,3 +121,23 @@ def test_a_named_parametrization_is_kept(shared_data: Path, tmp_path: Path) -> N
     doc = json.loads(r.stdout)
     assert doc["parametrization"] == ISO
     assert [c["parametrization"] for c in doc["parametrization_candidates"]] == [ISO]
+
+
+def test_a_default_fit_that_fails_names_the_options_that_may_help(tmp_path: Path) -> None:
+    """No verified fit at the default segments: exit 1, no file, and a hint naming
+    --dt (wider) that exists; the size limit here stands in for a hard material."""
+    rng = np.random.default_rng(2)
+    g = np.radians(np.linspace(1.0, 80.0, 15))
+    th, td = np.meshgrid(g, g, indexing="ij")
+    y = 1.0 + 0.5 * rng.uniform(size=th.size)  # noise: nothing small fits 5 %
+    rows = "\n".join(f"{a:.17g} {b:.17g} {v:.17g}"
+                      for a, b, v in zip(th.ravel(), td.ravel(), y, strict=True))
+    data = tmp_path / "noise.dat"
+    data.write_text(f"#DIM 2 1\n#PARAM_IN RUSIN_TH_TD\n#PARAM_OUT INV_STERADIAN\n{rows}\n")
+    out = tmp_path / "f.json"
+    r = run_cli("brdf", "fit", data, "-o", out, "--max-total", "6", "--time-limit", "0")
+    assert r.exit_code == 1 and not out.exists()
+    said = " ".join(r.stderr.split())
+    assert "hint: no verified fit at the default segments (y +- 0.05 y)" in said
+    assert "--dt 0.1" in said and "--time-limit" not in said.split("hint:")[1]
+    assert "Traceback" not in r.output

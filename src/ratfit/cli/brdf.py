@@ -205,6 +205,13 @@ def brdf_fit(input_path: Path, output: Path | None, fmt: str | None, param: str 
         if output is not None and not ok:
             click.echo(f"no fit file written: not every channel is verified ({output})", err=True)
     if not ok:
+        if widths["default"]:
+            limited = any(r.time_limited for r in results)
+            click.echo(
+                f"hint: no verified fit at the default segments (y +- {widths['dt']:.3g} y); "
+                f"wider ones (--dt {min(2 * float(widths['dt']), 1.0):.2g}) "
+                + ("or a longer --time-limit (the search ran out of time) " if limited else "")
+                + "may give one", err=True)
         sys.exit(EXIT_NO_FIT)
 
 
