@@ -905,3 +905,24 @@ def test_demo_addendum_clarabel(demo_run: dict, tmp_path: Path) -> None:
         assert b["decided_by"].startswith("clarabel"), (basis, b)
     # The solver changes nothing about the answer: the same minimal Legendre total.
     assert doc["minimal"]["verified"] and doc["minimal"]["total"] == ref["minimal"]["total"]
+
+
+def test_many_solver_disagreements_print_as_a_few_lines_and_a_count(capsys) -> None:
+    """A large fit's cross-checked disagreements (EXR B: 25) are three lines and a
+    count on the terminal; --json keeps every one."""
+    import dataclasses
+
+    import numpy as np
+
+    import ratfit
+    from ratfit.cli.main import SHOWN_DISAGREEMENTS, _print_report
+
+    x = np.linspace(0.0, 1.0, 30)
+    res = ratfit.fit(ratfit.Segments.from_relative(x, np.exp(x), 1e-3))
+    said = [f"({k},{k}): daqp reported infeasible, the lp check found a point"
+            for k in range(2, 9)]
+    _print_report([dataclasses.replace(res, disagreements=tuple(said))], None)
+    out = capsys.readouterr().out
+    assert out.count("y0 solver disagreement") == SHOWN_DISAGREEMENTS == 3
+    assert "4 more solver disagreement(s)" in " ".join(out.split())
+    assert dataclasses.replace(res, disagreements=tuple(said)).summary()["disagreements"] == said

@@ -263,6 +263,9 @@ def fit_table(con: Any, title: str, columns: list[str], rows: list[list[str]],
         dropped.append(rest[0])
 
 
+SHOWN_DISAGREEMENTS = 3
+
+
 def _print_report(results, out: Path | None, verified_as: str | None = None) -> None:
     """``verified_as``: what the verified column says of a success instead of "yes"
     (a fit verified on a subset of the data says "subset")."""
@@ -290,8 +293,14 @@ def _print_report(results, out: Path | None, verified_as: str | None = None) -> 
             con.print(f"[bold red]{r.channel}[/]: {r.message}")
         elif r.time_limited:
             con.print(f"[yellow]{r.channel}*[/]: {r.message}", highlight=False)
-        for d in r.disagreements:
+        # a few, then a count: on a large fit DAQP's false "infeasible" (each one
+        # cross-checked) came as 25 lines per channel
+        for d in r.disagreements[:SHOWN_DISAGREEMENTS]:
             con.print(f"[yellow]{r.channel} solver disagreement[/] {d}")
+        if len(r.disagreements) > SHOWN_DISAGREEMENTS:
+            con.print(f"[yellow]{r.channel}[/]: {len(r.disagreements) - SHOWN_DISAGREEMENTS} "
+                      "more solver disagreement(s), each settled by a cross-check "
+                      "(all in --json)", highlight=False)
     if out is not None:
         con.print(f"wrote {out}", highlight=False)
 
