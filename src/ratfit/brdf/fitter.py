@@ -233,9 +233,10 @@ def fit_brdf(ds: Dataset, *, dt: float | None = None, abs_width: float | None = 
     fitter.fit(seg)
     sub = ds.meta.get("subset")
     if sub:
-        # a subset fit is verified on that subset only: its status says so
+        # a subset fit is verified on that subset only: its status says so first,
+        # and keeps what the search said (a time limit: "may not be minimal")
         note = subset_status(int(sub["points"]), int(sub["of"]))
-        fitter.results_ = [replace(r, message=note) if r.success else r
+        fitter.results_ = [replace(r, message=f"{note}; {r.message}") if r.success else r
                            for r in fitter.results_]
     meta = {
         "parametrization": str(ds.meta.get("param_in", "UNKNOWN")),
