@@ -72,7 +72,8 @@ def one(path: str, size: int, dt: float, floor_rel: float, jobs: int, param: str
     return {
         "samples": seg.n_points, "read_s": t_read, "fit_s": t_fit, "peak_mb": rss,
         "verified": fitter.success_,
-        "nm": [(r.n, r.m) for r in fitter.results_],
+        # "*": the channel's search stopped at the time limit (total not shown minimal)
+        "nm": [f"({r.n}, {r.m}){'*' if r.time_limited else ''}" for r in fitter.results_],
         "coefs": sum(r.n + r.m for r in fitter.results_),
         "qps": sum(r.qp_solves for r in fitter.results_),
     }
@@ -129,7 +130,10 @@ def main() -> None:
         print(f"{r['samples']:>9} {r['read_s']:>7.2f} {r['fit_s']:>8.2f} "
               f"{r['fit_s'] / base['fit_s']:>7.1f} {r['samples'] / base['samples']:>9.1f} "
               f"{r['peak_mb']:>8.0f} {str(r['verified']):>8} {r['coefs']:>6} {r['qps']:>5}  "
-              f"{r['nm']}")
+              f"{' '.join(r['nm'])}")
+    if any("*" in nm for r in rows for nm in r.get("nm", [])):
+        print("(*: that channel's search stopped at the time limit; its total may not be "
+              "minimal)")
 
 
 if __name__ == "__main__":
