@@ -126,7 +126,7 @@ def default_dt(x: ArrayLike, y: ArrayLike, floor_rel: float = DEFAULT_FLOOR_REL,
         return DEFAULT_DT
     lo, hi = xa.min(axis=0), xa.max(axis=0)
     t = (xa - lo) / np.where(hi > lo, hi - lo, 1.0)
-    d, i = cKDTree(t).query(t, k=2)
+    d, i = cKDTree(t).query(t, k=2, workers=-1)
     close = d[:, 1] < near
     if not close.any():
         return DEFAULT_DT
