@@ -49,7 +49,8 @@ _ISOTROPIC_DEFAULT = {"CARTESIAN": "ISOTROPIC_TV_TL_DPHI"}
               help="Relative segment width: [(1-dt) y, (1+dt) y]. Without --dt, --abs-width "
                    "and --floor-rel: the file's own intervals, else 0.05 (widened where "
                    "nearby samples need it) with --floor-rel 0.002 (0.001 in "
-                   "RUSIN_TH_TD_PD).")
+                   "RUSIN_TH_TD_PD; halved up to twice while the fit stays at most 12 "
+                   "coefficients per channel and most samples lie under the floor).")
 @click.option("--abs-width", type=float,
               help="Absolute half-width (floor); with --dt each segment takes the larger.")
 @click.option("--floor-rel", type=float,
