@@ -363,3 +363,35 @@ def test_active_set_takes_the_same_rows_from_a_partial_sort():
     assert not np.isin([3, 99], smallest(v, 4998)).any()
     assert np.array_equal(np.sort(smallest(v, 10**6)), np.arange(5000))
     assert smallest(v, 0).size == 0
+
+
+def test_lp_margin_falls_back_to_interior_point_when_the_simplex_cycles(monkeypatch) -> None:
+    """HiGHS's dual simplex cycles on a few degenerate margin LPs (MERL size: 92 s and
+    118 s inside one split): it is capped at 10 iterations per row and column and the
+    LP goes to the interior-point method, whose margin is the verdict."""
+    import scipy.optimize
+
+    from ratfit.core import qp
+
+    rng = np.random.default_rng(11)
+    x = rng.uniform(-1, 1, (40, 3))
+    An = np.hstack([np.ones((40, 1)), x])  # c = (1, 0, 0, 0) has margin 1/|row|
+    An /= np.linalg.norm(An, axis=1)[:, None]
+    calls = []
+    real = scipy.optimize.linprog
+
+    def linprog(*a, method, options, **kw):
+        calls.append((method, options.get("maxiter")))
+        if method == "highs-ds":  # as if it cycled up to its cap
+            return scipy.optimize.OptimizeResult(status=1, message="iteration limit", x=None)
+        return real(*a, method=method, options=options, **kw)
+
+    monkeypatch.setattr(scipy.optimize, "linprog", linprog)
+    c = qp._lp_margin(An)
+    assert calls == [("highs-ds", 10 * (40 + 4)), ("highs-ipm", None)]
+    assert c is not None and np.all(An @ c > 0.1)
+    # both give up: no verdict, never "no point"
+    monkeypatch.setattr(scipy.optimize, "linprog", lambda *a, **k: scipy.optimize.OptimizeResult(
+        status=1, message="iteration limit", x=None))
+    with pytest.raises(qp._Undecided):
+        qp._lp_margin(An)
