@@ -182,11 +182,13 @@ def test_blocked_r_factor_and_band_rows_match_the_stacked_matrices() -> None:
     rng = np.random.default_rng(3)
     N, n, m = 5 * polish._BLOCK + 17, 4, 3  # beyond 4 blocks: the blocked path
     P, Q = rng.normal(size=(N, n)), rng.normal(size=(N, m))
-    tail = 1e-3 * np.eye(n + m)
-    M = np.hstack([P, Q])
-    R = polish._tall_r(M, tail)
-    R_ref = np.linalg.qr(np.vstack([M, tail]), mode="r")
+    y, scale = rng.uniform(0.5, 2.0, N), rng.uniform(0.1, 10.0, N)
+    M = np.hstack([P, -y[:, None] * Q]) * scale[:, None]
+    ridge = 1e-10 * np.sum(M * M) / (n + m)
+    R = polish._objective_r(P, Q, y, scale)
+    R_ref = np.linalg.qr(np.vstack([M, np.sqrt(ridge) * np.eye(n + m)]), mode="r")
     assert np.allclose(np.abs(R), np.abs(R_ref), rtol=1e-10, atol=1e-10)
+    assert np.allclose(R.T @ R, M.T @ M + ridge * np.eye(n + m), rtol=1e-10)
     lo, hi = rng.uniform(0.5, 1.0, N), rng.uniform(1.5, 2.0, N)
     grid, h = rng.normal(size=(5, n + m)), rng.uniform(size=5)
     band = polish._BandRows(P, Q, lo, hi, grid, h)

@@ -478,8 +478,8 @@ class BRDFFitter(RationalFitter):
         return cache[1]
 
     def _polish_rounds(self, rf: RationalFunction, seg: Segments, j: int,
-                       deadline: float | None, rounds: int = 4,
-                       method: str = "auto") -> tuple[RationalFunction, Verification] | None:
+                       deadline: float | None, rounds: int = 4, method: str = "auto",
+                       repair: bool = False) -> tuple[RationalFunction, Verification] | None:
         """The least-squares polish of ``rf`` that passes :meth:`_verify`, or None
         (also once ``deadline``, a ``time.perf_counter()`` value, has passed).
 
@@ -495,7 +495,8 @@ class BRDFFitter(RationalFitter):
             if _past(deadline):
                 return None
             cand = polish_fit(rf, seg, j, positive_at=pts, solver=self.solver,
-                              deadline=deadline, method=method)
+                              deadline=deadline, method=method,
+                              iterations=1 if repair else 3, line_search=not repair)
             if cand is None:
                 return None
             ver = self._verify(cand, seg, j)
@@ -521,7 +522,8 @@ class BRDFFitter(RationalFitter):
         often valid at the same size (the minimum-norm point is the wildest one)."""
         # the QP only: repairs run many times per search, the cone program is slower
         # (garnet_red: 103 s of Clarabel in 12 repairs, 30 s for the whole fit without)
-        return self._polish_rounds(rf, seg, j, self._polish_deadline(), rounds=3, method="qp")
+        return self._polish_rounds(rf, seg, j, self._polish_deadline(), rounds=3, method="qp",
+                                   repair=True)
 
     def _polished(self, res: FitResult, seg: Segments, j: int) -> FitResult:
         """``res`` with its rational replaced by the least-squares polish when that

@@ -66,6 +66,7 @@ def polish_fit(
     deadline: float | None = None,
     method: str = "auto",
     iterations: int = 3,
+    line_search: bool = True,
 ) -> RationalFunction | None:
     """The least-squares fit of the same size as ``rf`` whose values stay in the
     inner part (a fraction ``tau`` of each width off both ends) of every segment.
@@ -83,7 +84,9 @@ def polish_fit(
     ``method``: "auto" (the whitened QP with ``solver``, the cone program where
     that fails), "qp" or "socp" (the cone program only; needs Clarabel).
     ``iterations``: linearised passes at most (each one searched on the true
-    error); None when none makes the fit better.
+    error); None when none makes the fit better. ``line_search=False``: the first
+    pass's QP answer as it is, better or not (a repair of an invalid candidate wants
+    the point that meets every positivity row, not the best point on the way to it).
     """
     x = seg.x
     lo = seg.lo[:, channel]
@@ -113,6 +116,9 @@ def polish_fit(
         step = _polish_pass(P, Q, lo, hi, y, w, c, grid, p_rows, tau, solver, methods,
                             max_rounds, start_rows, deadline)
         if step is None:
+            break
+        if not line_search:
+            c, improved = step, True
             break
         c_new, e_new = _line_search(P, Q, y, w, c, step)
         if not e_new < best:
@@ -184,13 +190,11 @@ def _polish_pass(P: Array, Q: Array, lo: Array, hi: Array, y: Array, w: Array, c
     n = P.shape[1]
     q0 = Q @ c[n:]
     # Objective: || diag(w / q0) (P a - y Q b) ||^2, plus a tiny ridge for uniqueness.
-    M = np.hstack([P, -y[:, None] * Q]) * (w / q0)[:, None]
-    k = M.shape[1]
-    ridge = 1e-10 * max(float(np.sum(M * M)) / k, 1e-300)
     # H = M^T M + ridge I = R^T R, z = R c; R from a QR of the stacked rows, not a
     # Cholesky of H: with q over six decades (a mirror's peak) H's condition is the
     # square of M's and the whitened QP met its rows only to ~1e-4.
-    R = _tall_r(M, np.sqrt(ridge) * np.eye(k))
+    R = _objective_r(P, Q, y, w / q0)
+    k = R.shape[0]
     if not np.all(np.isfinite(R)) or np.any(np.abs(np.diag(R)) == 0):
         return None
     Rinv = np.linalg.solve(R, np.eye(k))
@@ -320,14 +324,22 @@ def _past(deadline: float | None) -> bool:
 _BLOCK = 8192
 
 
-def _tall_r(M: Array, tail: Array) -> Array:
-    """R of the QR of [M; tail], from the R factors of row blocks (TSQR): the same
-    R up to signs, as accurate as one Householder QR, several times faster on
-    hundreds of thousands of rows."""
-    if M.shape[0] <= 4 * _BLOCK:
-        return np.linalg.qr(np.vstack([M, tail]), mode="r")
-    parts = [np.linalg.qr(M[s:s + _BLOCK], mode="r") for s in range(0, M.shape[0], _BLOCK)]
-    return np.linalg.qr(np.vstack([*parts, tail]), mode="r")
+def _objective_r(P: Array, Q: Array, y: Array, scale: Array, ridge: float = 1e-10) -> Array:
+    """R of the QR of [M; sqrt(r) I] with M = diag(scale) [P, -y Q] and r = ``ridge``
+    x the mean squared column norm of M: M is never stored whole; each block of rows
+    is built and reduced to its R factor (TSQR), the same R up to signs, as accurate
+    as one Householder QR and several times faster on hundreds of thousands of rows."""
+    k = P.shape[1] + Q.shape[1]
+    parts = []
+    for s in range(0, P.shape[0], _BLOCK):
+        sl = slice(s, s + _BLOCK)
+        M = np.hstack([P[sl], -y[sl, None] * Q[sl]])
+        M *= scale[sl, None]
+        parts.append(np.linalg.qr(M, mode="r"))
+    R0 = parts[0] if len(parts) == 1 else np.linalg.qr(np.vstack(parts), mode="r")
+    # ||M||_F^2 = ||R0||_F^2: the ridge without another pass over the rows
+    r = ridge * max(float(np.sum(R0 * R0)) / k, 1e-300)
+    return np.linalg.qr(np.vstack([R0, np.sqrt(r) * np.eye(k)]), mode="r")
 
 
 class _BandRows:
@@ -344,13 +356,11 @@ class _BandRows:
         # with a q_floor, N more rows (0, Q_i) >= q_floor after the band's 2N
         self.q_floor = q_floor
         self.n_data = (3 if q_floor is not None else 2) * self.N
-        s_lo = np.empty(self.N)
-        s_hi = np.empty(self.N)
-        for s in range(0, self.N, _BLOCK):
-            sl = slice(s, s + _BLOCK)
-            p, q = P[sl], Q[sl]
-            s_lo[sl] = np.linalg.norm(np.hstack([p, -lo_in[sl, None] * q]), axis=1)
-            s_hi[sl] = np.linalg.norm(np.hstack([-p, hi_in[sl, None] * q]), axis=1)
+        # |(P_i, -lo_i Q_i)| = sqrt(|P_i|^2 + lo_i^2 |Q_i|^2): no N x k temporary
+        pp = np.einsum("ij,ij->i", P, P)
+        qq = np.einsum("ij,ij->i", Q, Q)
+        s_lo = np.sqrt(pp + lo_in * lo_in * qq)
+        s_hi = np.sqrt(pp + hi_in * hi_in * qq)
         s_lo[s_lo == 0] = 1.0
         s_hi[s_hi == 0] = 1.0
         self.s_lo, self.s_hi = s_lo, s_hi
@@ -416,6 +426,9 @@ def _solve_band(P: Array, Q: Array, lo: Array, hi: Array, qp: QPStep, tau: float
     # over four decades) turns that tolerance into real misses of the band.
     lift = np.zeros(band.count)
     N2 = 2 * len(lo)
+    # a value is missed when it lands in the outer half of the cut (below)
+    lo_half, hi_half = lo + 0.5 * tau * width, hi - 0.5 * tau * width
+    tol = -1e-9 * width
     for _ in range(max_rounds):
         if _past(deadline):
             return None
@@ -432,8 +445,7 @@ def _solve_band(P: Array, Q: Array, lo: Array, hi: Array, qp: QPStep, tau: float
         # lifting those never settles.
         with np.errstate(all="ignore"):
             r = pa / qb
-        slack = np.minimum(r - (lo + 0.5 * tau * width), (hi - 0.5 * tau * width) - r)
-        off = ~(slack >= -1e-9 * width)
+        off = ~(np.minimum(r - lo_half, hi_half - r) >= tol)
         # (only the side a missed value crossed: lifting the other would loosen it)
         missed = active & (res < 0) & np.concatenate([off, off, res[N2:] < -1e-9])
         bad = np.flatnonzero(~(res >= 0) & ~active)
@@ -441,6 +453,7 @@ def _solve_band(P: Array, Q: Array, lo: Array, hi: Array, qp: QPStep, tau: float
             break
         lift[missed] += 2.0 * -res[missed]
         active[bad[smallest(res[bad], batch)]] = True
+        batch = int(1.5 * batch)  # many rounds: take more rows each time
     else:
         return None
     return c
