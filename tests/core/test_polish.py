@@ -227,3 +227,47 @@ def test_band_rows_keep_q_above_its_floor_at_the_data() -> None:
     res = band.residuals(c, P @ c[:n], Q @ c[n:])
     assert np.allclose(res[2 * N:3 * N], Q @ c[n:] - 0.25)
     assert np.allclose(res[3 * N:], grid @ c - h)
+
+
+def test_repair_mode_is_one_pass_inside_half_the_start_margin(monkeypatch) -> None:
+    """A repair (an invalid candidate of the search) takes one linearised pass and its
+    QP's answer as it is: q > 0, p >= 0 at the positivity points, and the band cut at
+    half the start's own margin (the inner 96 % is often empty at the minimal size)."""
+    import ratfit.core.polish as polish
+
+    x = np.linspace(0.0, 1.0, 300)
+    y = 1.0 + np.sin(3 * x) ** 2
+    rf, seg = _fit(x, y, 0.03)
+    lo, hi = seg.lo[:, 0], seg.hi[:, 0]
+    w = hi - lo
+    r0 = rf(seg.x)
+    margin = float(np.min(np.minimum(r0 - lo, hi - r0) / w))
+    tau = 0.4  # above this start's own margin, as 0.02 is at a minimal BRDF size
+    assert 0 < margin / 2 < tau
+    passes, cuts = [], []
+    real_pass, real_band = polish._polish_pass, polish._solve_band
+
+    def counting_pass(*a, **k):
+        passes.append(a[-1] if len(a) > 14 else k.get("repair"))
+        return real_pass(*a, **k)
+
+    def recording_band(P, Q, lo_, hi_, qp, tau, *a, **k):
+        cuts.append(tau)
+        return real_band(P, Q, lo_, hi_, qp, tau, *a, **k)
+
+    monkeypatch.setattr(polish, "_polish_pass", counting_pass)
+    monkeypatch.setattr(polish, "_solve_band", recording_band)
+    extra = np.linspace(0.0, 1.5, 301)[:, None]
+    fixed = polish_fit(rf, seg, 0, positive_at=extra, tau=tau, repair=True)
+    assert fixed is not None and passes == [True]
+    assert cuts == [pytest.approx(margin / 2, rel=1e-9)]
+    assert np.all(fixed.denominator(extra) > 0)
+    assert np.all(fixed.numerator(extra) >= -1e-12)
+    r = fixed(seg.x)
+    assert np.all(r >= lo + 0.25 * margin * w) and np.all(r <= hi - 0.25 * margin * w)
+    assert verify(fixed, seg, channel=0).verified
+    # the full polish of the same start tries tau first, in passes of its own
+    passes.clear()
+    cuts.clear()
+    polish_fit(rf, seg, 0, positive_at=extra, tau=tau)
+    assert cuts[0] == tau and passes and set(passes) == {False}

@@ -485,6 +485,8 @@ class BRDFFitter(RationalFitter):
 
         Where the dense validity check still finds q <= 0 or r < 0, those points
         join the polish's constraints and it runs again (constraint generation).
+        ``repair``: :func:`~ratfit.core.polish.polish_fit`'s repair mode (a valid fit is
+        the point; the chosen fit is polished in full after the search).
         """
         from ratfit.core.polish import polish_fit
 
@@ -496,7 +498,7 @@ class BRDFFitter(RationalFitter):
                 return None
             cand = polish_fit(rf, seg, j, positive_at=pts, solver=self.solver,
                               deadline=deadline, method=method,
-                              iterations=1 if repair else 3, line_search=not repair)
+                              repair=repair)
             if cand is None:
                 return None
             ver = self._verify(cand, seg, j)
