@@ -73,3 +73,58 @@ def test_subset_fit_says_so_in_its_status(shared_data: Path) -> None:
     # and keeps what the search said after it (a time limit would say "may not be minimal")
     assert "; verified fit found" in fitter.results_[0].message
     assert meta["verified_on"] == "a random subset of 300 of 262144 samples"
+
+
+def test_channels_side_by_side_give_each_channel_its_own_answer(shared_data: Path,
+                                                                monkeypatch) -> None:
+    """Large multi-channel data is searched a channel per thread (splits one at a
+    time, no hint between channels, validity points kept per channel while it runs):
+    each channel's answer is the one it gets fitted alone, whatever the timing, and
+    every channel is verified on all samples."""
+    import ratfit.fitting.search as search
+
+    path = shared_data / "alta" / "data-example-01.exr"
+    if not path.exists():
+        pytest.skip(f"{path} not found")
+    ds = brdf_dataset(path, None, max_points=600)
+    seen: list[int] = []
+    real = search.RationalFitter._fit_side_by_side
+
+    def spy(self, space, log_space, seg, threads):
+        seen.append(threads)
+        return real(self, space, log_space, seg, threads)
+
+    monkeypatch.setattr(search.RationalFitter, "_fit_side_by_side", spy)
+    monkeypatch.setattr(search, "CHANNEL_THREADS_POINTS", 500)
+    both, seg, meta = fit_brdf(ds, dt=0.22, jobs=2)
+    assert seen == [2] and both.success_
+    for j, name in enumerate(seg.names):
+        alone, seg1, _ = fit_brdf(brdf_dataset(path, None, channels=[name], max_points=600),
+                                  dt=0.22, jobs=1)
+        a, b = alone.results_[0], both.results_[j]
+        assert (b.n, b.m) == (a.n, a.m), name
+        r = b.rational(seg.x)
+        assert np.all((seg.lo[:, j] <= r) & (r <= seg.hi[:, j]))
+        assert meta["validity"][j].startswith("valid on ")
+    assert seen == [2]  # the single-channel fits ran in turn
+
+
+def test_an_interrupted_channel_thread_stops_the_others() -> None:
+    """Ctrl-C while channels run side by side: the other channels stop at their next
+    split (KeyboardInterrupt), not after their whole search."""
+    import threading
+
+    from ratfit.core.bases import PolynomialSpace
+    from ratfit.core.segments import Segments
+    from ratfit.fitting.search import SearchEngine
+
+    x = np.linspace(0.0, 1.0, 50)
+    seg = Segments.from_widths(x, np.exp(x), dt=0.01)
+    fitter = RationalFitter(jobs=1)
+    fitter._cancel = threading.Event()
+    run = SearchEngine(fitter, PolynomialSpace("legendre", [[0.0, 1.0]]), seg, 0)
+    run.test_many([(3, 1)])  # runs while not cancelled
+    assert (3, 1) in run.cache
+    fitter._cancel.set()
+    with pytest.raises(KeyboardInterrupt):
+        run.test_many([(4, 2)])

@@ -451,7 +451,7 @@ class BRDFFitter(RationalFitter):
         self.polish = polish
 
     def fit(self, segments: Segments) -> BRDFFitter:
-        self._extra: list[Array] = []
+        self._shared_extra: list[Array] = []
         self._checks: dict[int, Any] = {}
         super().fit(segments)
         if self.polish:
@@ -465,6 +465,25 @@ class BRDFFitter(RationalFitter):
             for r in self.results_
         ]
         return self
+
+    @property
+    def _extra(self) -> list[Array]:
+        """Validity points the verifier found, which later splits (and channels) keep
+        q > 0, p >= 0 at; a channel searched beside others keeps its own while it
+        runs (its answer must not depend on the other threads' timing)."""
+        local = getattr(self, "_local", None)
+        if local is not None and hasattr(local, "channel"):
+            if not hasattr(local, "extra"):
+                local.extra = []
+            return local.extra
+        return self.__dict__.setdefault("_shared_extra", [])
+
+    def _channel_state(self) -> list[Array]:
+        return self._extra
+
+    def _merge_channel_states(self, states: list[Any]) -> None:
+        for points in states:
+            self._extra.extend(points)
 
     def _configurations(self, domain: Array) -> Array | None:
         """The physical-validity grid of direction pairs in ``domain`` (cached)."""
@@ -570,7 +589,7 @@ class BRDFFitter(RationalFitter):
 
     def _constraint_points(self) -> int:
         """How many validity points the verifier has added to the split systems."""
-        return sum(len(e) for e in getattr(self, "_extra", []))
+        return sum(len(e) for e in self._extra)
 
     def _split_system(self, space: PolynomialSpace, seg: Segments, j: int, n: int, m: int,
                       like: RowSystem | None = None) -> RowSystem | None:
@@ -583,7 +602,7 @@ class BRDFFitter(RationalFitter):
             grid = self._valid_grid_for(space.domain) if space.dim > 1 else None
         if grid is None:
             return system
-        extra = getattr(self, "_extra", [])
+        extra = self._extra
         if extra:
             grid = np.concatenate([grid, *extra])
         if grid.size == 0:
@@ -620,7 +639,7 @@ class BRDFFitter(RationalFitter):
         if chk is None:  # nothing says what is valid: the plain box check decides
             return ver if box_checked else verify(rf, seg, channel=j)
         if not hasattr(self, "_checks"):
-            self._checks, self._extra = {}, []
+            self._checks = {}
         self._checks[id(rf)] = chk
         if len(chk.bad_points):
             # constraint generation: later splits keep q > 0, p >= 0 there too

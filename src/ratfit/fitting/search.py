@@ -36,13 +36,18 @@ generated). Subclasses of :class:`RationalFitter` supply theirs through
 ``_search_parts``.
 
 Independent QPs (speculative tests of the next columns, all splits of one
-total) run in a thread pool: the solvers release the GIL.
+total) run in a thread pool: the solvers release the GIL. Large multi-channel
+data (from :data:`CHANNEL_THREADS_POINTS` samples) is searched a channel per
+thread instead, each channel's splits one at a time: speculative splits there
+cost more than they save (MERL size, 3 channels, 2 threads: 85 s split-parallel,
+59 s with one thread).
 """
 
 from __future__ import annotations
 
 import dataclasses
 import os
+import threading
 import time
 from collections.abc import Callable, Iterable
 from concurrent.futures import ThreadPoolExecutor
@@ -285,17 +290,65 @@ class RationalFitter(Estimator):
                                variable="log")
 
     def _fit_either(self, space: PolynomialSpace, log_space: PolynomialSpace | None,
-                    seg: Segments, j: int) -> FitResult:
-        """The channel's fit in x, or with ``log_space`` the smaller of log x and x."""
+                    seg: Segments, j: int, alone: bool = False) -> FitResult:
+        """The channel's fit in x, or with ``log_space`` the smaller of log x and x.
+        ``alone``: the channel runs beside others (see :meth:`_fit_channel`)."""
         if log_space is None:
-            return self._fit_channel(space, seg, j)
-        lg = self._fit_channel(log_space, seg, j)
+            return self._fit_channel(space, seg, j, alone=alone)
+        lg = self._fit_channel(log_space, seg, j, alone=alone)
         if not lg.success:
-            return self._fit_channel(space, seg, j, spent=lg.seconds)
+            return self._fit_channel(space, seg, j, spent=lg.seconds, alone=alone)
         if lg.n + lg.m <= int(self.min_total):
             return lg
-        xs = self._fit_channel(space, seg, j, max_total=lg.n + lg.m - 1, spent=lg.seconds)
+        xs = self._fit_channel(space, seg, j, max_total=lg.n + lg.m - 1, spent=lg.seconds,
+                               alone=alone)
         return xs if xs.success else lg
+
+    def _channel_threads(self, seg: Segments) -> int:
+        """How many channels are searched at once: one per thread (up to ``jobs``)
+        for large multi-channel data, else 1 (channels in turn, splits in threads)."""
+        jobs = int(self.jobs or os.cpu_count() or 1)
+        if jobs <= 1 or seg.n_channels <= 1 or seg.n_points < CHANNEL_THREADS_POINTS:
+            return 1
+        return min(jobs, seg.n_channels)
+
+    def _fit_side_by_side(self, space: PolynomialSpace, log_space: PolynomialSpace | None,
+                          seg: Segments, threads: int) -> list[FitResult]:
+        """Every channel's fit, ``threads`` channels at a time. Each channel starts
+        its search at ``min_total`` (no hint from another channel) and keeps what it
+        learns to itself while it runs (:meth:`_channel_state`, merged in channel
+        order afterwards): its answer does not depend on timing. Ctrl-C stops every
+        channel at its next split."""
+        self._local = threading.local()
+        self._cancel = threading.Event()
+        states: dict[int, object] = {}
+
+        def one(j: int) -> FitResult:
+            vars(self._local).clear()  # a pool thread may have run another channel
+            self._local.channel = j
+            try:
+                return self._fit_either(space, log_space, seg, j, alone=True)
+            finally:
+                states[j] = self._channel_state()
+
+        ex = ThreadPoolExecutor(threads)
+        try:
+            results = list(ex.map(one, range(seg.n_channels)))
+        except BaseException:
+            self._cancel.set()
+            raise
+        finally:
+            ex.shutdown(wait=False, cancel_futures=True)
+            del self._local
+        self._merge_channel_states([states[j] for j in sorted(states)])
+        return results
+
+    def _channel_state(self) -> object:
+        """What this thread's channel learned that later steps need (subclasses)."""
+        return None
+
+    def _merge_channel_states(self, states: list[object]) -> None:
+        """Take in :meth:`_channel_state` of every channel, in channel order."""
 
     # -- collaborators of the search engine (subclasses: monotone CDFs, BRDFs) ---------
     def _search_parts(self, space: PolynomialSpace, seg: Segments) -> SearchParts:
@@ -320,9 +373,13 @@ class RationalFitter(Estimator):
         work = scale_segments(segments, factors)
         log_space = self._log_space(space, segments)
         self._hint: int | None = None
+        threads = self._channel_threads(work)
         with one_blas_thread():  # the search's own threads; BLAS pools only spin
-            results = [self._fit_either(space, log_space, work, j)
-                       for j in range(segments.n_channels)]
+            if threads > 1:
+                results = self._fit_side_by_side(space, log_space, work, threads)
+            else:
+                results = [self._fit_either(space, log_space, work, j)
+                           for j in range(segments.n_channels)]
         verifier = self._search_parts(space, segments).verifier
         self.results_ = [
             unscale_result(r, segments, j, float(f), verifier)
@@ -367,9 +424,12 @@ class RationalFitter(Estimator):
         return self.active_set
 
     def _fit_channel(self, space: PolynomialSpace, seg: Segments, j: int,
-                     max_total: int | None = None, spent: float = 0.0) -> FitResult:
+                     max_total: int | None = None, spent: float = 0.0,
+                     alone: bool = False) -> FitResult:
+        """``alone``: the channel runs in a thread beside others: its splits one at
+        a time, no hint from (or to) another channel."""
         t0 = time.perf_counter()
-        run = SearchEngine(self, space, seg, j)
+        run = SearchEngine(self, space, seg, j, jobs=1 if alone else None)
         if self.time_limit is not None:
             # ``spent``: seconds this channel already used in another variable; the
             # second search still gets a quarter of the budget.
@@ -389,12 +449,13 @@ class RationalFitter(Estimator):
                 best = run.all_splits(lo_t)
             else:
                 best = run.exhaustive(lo_t, hi_t) if self.strategy == "exhaustive" else (
-                    run.staircase(lo_t, hi_t, start=self._hint if self._warm_start else None)
+                    run.staircase(lo_t, hi_t, start=self._hint if self._warm_start
+                                  and not alone else None)
                 )
         except _OutOfTime:
             return run.timed_out(lo_t, hi_t, time.perf_counter() - t0)
         res = run.result(best, lo_t, hi_t, time.perf_counter() - t0)
-        if res.success:
+        if res.success and not alone:
             self._hint = res.n + res.m  # the next channel's search starts there
         return res
 
@@ -503,6 +564,8 @@ def fit(segments: Segments, **params) -> FitResult:
 
 
 MAX_JOBS = 1024
+# From this many samples, several channels are searched side by side, one thread each.
+CHANNEL_THREADS_POINTS = 65_536
 # Rejected candidates are solved again with the verifier's new constraint points
 # up to this many samples (see SearchEngine._run).
 REGENERATE_POINTS = 65_536
@@ -524,7 +587,7 @@ class SearchEngine:
     """
 
     def __init__(self, fitter: RationalFitter, space: PolynomialSpace, seg: Segments, j: int,
-                 parts: SearchParts | None = None):
+                 parts: SearchParts | None = None, jobs: int | None = None):
         self.f = fitter
         self.space = space
         self.seg = seg
@@ -535,7 +598,7 @@ class SearchEngine:
         self.second_opinion = False
         self.warm: NDArray[np.int64] | None = None
         self.infeasible: list[tuple[int, int]] = []
-        self.jobs = int(fitter.jobs or os.cpu_count() or 1)
+        self.jobs = int(jobs or fitter.jobs or os.cpu_count() or 1)
         self.active_set = fitter._resolved_active_set()
         self.deadline: float | None = None
         # distinct points, from the system's sort order (np.unique on rows is slow)
@@ -665,6 +728,9 @@ class SearchEngine:
         todo = [s for s in splits if s not in self.cache]
         if not todo:
             return
+        cancel = getattr(self.f, "_cancel", None)
+        if cancel is not None and cancel.is_set():
+            raise KeyboardInterrupt  # another channel's thread was interrupted
         if self.cache and self.deadline is not None and time.perf_counter() > self.deadline:
             raise _OutOfTime
         n_max = max(s[0] for s in todo)
