@@ -335,11 +335,13 @@ class RationalFitter(Estimator):
         try:
             results = list(ex.map(one, range(seg.n_channels)))
         except BaseException:
+            # the threads still running see it at their next split (and keep their
+            # thread-local state until then); the fitter is not reused after this
             self._cancel.set()
             raise
         finally:
             ex.shutdown(wait=False, cancel_futures=True)
-            del self._local
+        del self._local, self._cancel  # not picklable; a later fit starts afresh
         self._merge_channel_states([states[j] for j in sorted(states)])
         return results
 
@@ -373,6 +375,8 @@ class RationalFitter(Estimator):
         work = scale_segments(segments, factors)
         log_space = self._log_space(space, segments)
         self._hint: int | None = None
+        for stale in ("_local", "_cancel"):  # left by an interrupted side-by-side fit
+            self.__dict__.pop(stale, None)
         threads = self._channel_threads(work)
         with one_blas_thread():  # the search's own threads; BLAS pools only spin
             if threads > 1:
