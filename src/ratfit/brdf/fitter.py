@@ -438,6 +438,8 @@ def _narrow_floor(best: tuple, datasets: list[Dataset], tried: list[dict[str, An
         meta2["segments"]["default"] = True
         meta2["segments"]["narrowed_floor_from"] = float(meta["segments"].get(
             "narrowed_floor_from") or band[1])
+        if meta["segments"].get("widened_from"):  # the dt kept came from a widening
+            meta2["segments"]["widened_from"] = list(meta["segments"]["widened_from"])
         best = (f2, seg2, meta2, (band[0], floor), total2)
     return best
 
