@@ -66,3 +66,24 @@ def test_grid_with_three_values_on_one_axis_fits_with_a_sane_delta() -> None:
     assert res.success, res.message
     idx = fitter.space_.indices(res.n)
     assert idx[:, 0].max() <= 2
+
+
+def test_caps_of_dense_scattered_data_stay_loadable(tmp_path) -> None:
+    """More distinct values per axis than a fit file's cap (retro-gray-tape-dense in
+    the half-vector frame has 53 300): the caps are clipped at MAX_DEGREE_CAP, where
+    they never bind, and the verified fit saves and loads back."""
+    from ratfit.core.columns import MAX_DEGREE_CAP
+    from ratfit.io.fitfile import fit_document, load_fit, save_fit
+
+    rng = np.random.default_rng(0)
+    x = rng.uniform(-1.0, 1.0, size=(12_500, 2))
+    assert distinct_per_axis(x).tolist() == [12_500, 12_500]
+    assert axis_degree_caps(x) == (MAX_DEGREE_CAP, MAX_DEGREE_CAP) == (10_000, 10_000)
+    y = (2.0 + x[:, 0]) / (1.5 + x[:, 1])
+    seg = ratfit.Segments.from_relative(x, y, 0.01)
+    fitter = ratfit.RationalFitter(n=3, m=3).fit(seg)
+    assert fitter.success_ and fitter.space_.max_degree == (10_000, 10_000)
+    path = tmp_path / "fit.json"
+    save_fit(path, fit_document(fitter.results_))
+    saved = load_fit(path)
+    np.testing.assert_allclose(saved(x[:100])[:, 0], fitter.rational_(x[:100]), rtol=1e-12)

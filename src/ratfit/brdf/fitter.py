@@ -43,7 +43,7 @@ from ratfit.io.fitfile import SavedFit, fit_document, load_fit, save_fit
 
 __all__ = ["BRDF_SOLVER", "DEFAULT_DT", "DEFAULT_FLOOR_REL", "BRDFFit", "BRDFFitter",
            "HALF_VECTOR", "HALF_VECTOR_FLOOR_REL", "candidate_parametrizations",
-           "default_floor_rel", "brdf_metrics", "brdf_segments",
+           "default_floor_rel", "brdf_metrics", "widened_dt", "brdf_segments",
            "cos_theta_l", "default_dt", "fit_brdf", "fit_brdf_auto",
            "load_brdf_fit", "nonnegative_segments", "prepare_values", "resolve_widths",
            "save_brdf_fit",
@@ -77,6 +77,14 @@ HALF_VECTOR_FLOOR_REL = 0.001
 # 0.05 % 3+5 / 3+5 / 3+5, log RMSE 0.017, and every error better than the models'.
 SMALL_FIT_TOTAL = 12
 FLOOR_REFINEMENTS = 2
+# When no split of a default fit has any candidate (every QP infeasible: found out in
+# seconds, nothing was cut short by the time limit), the default relative width is
+# widened by WIDEN_FACTOR, at most up to MAX_DEFAULT_DT, and that parametrization
+# fitted again. The dense retro files: gray-tape-dense has no candidate up to 100
+# coefficients at 0.28 and 0.42 in the half-vector frame (a 100x retro peak within a
+# few % of the theta_d span) and a verified fit at 0.63.
+WIDEN_FACTOR = 1.5
+MAX_DEFAULT_DT = 0.9
 _HAS_HALF_VECTOR_ALTERNATIVE = ("ISOTROPIC_TV_TL_DPHI", "ISOTROPIC_TL_TV_PROJ_DPHI")
 
 
@@ -287,6 +295,14 @@ def fit_brdf_auto(datasets: list[Dataset], **kw: Any):
     smaller to win), and one whose segments would be wider is not tried.
     ``meta["candidates"]`` records every parametrization; with no verified fit the
     last try's result is returned.
+
+    With default widths (no width, no size and no ``max_total`` given) and no
+    verified fit, each
+    parametrization whose search had no candidate at all (every split infeasible,
+    nothing cut short by the time limit: known in seconds) is fitted again at
+    :func:`widened_dt` widths until a try has candidates (:func:`_widen`); the first
+    verified one is kept and ``meta["segments"]["widened_from"]`` lists the widths
+    that had none.
     """
     if not datasets:
         raise InputError("fit_brdf_auto needs at least one dataset")
@@ -311,11 +327,26 @@ def fit_brdf_auto(datasets: list[Dataset], **kw: Any):
         total = sum(r.n + r.m for r in fitter.results_)
         tried.append({"parametrization": meta["parametrization"], "verified": ok,
                       "coefficients": total if ok else None, "dt": band[0],
-                      "floor_rel": band[1], "searched_up_to": opts.get("max_total")})
+                      "floor_rel": band[1], "searched_up_to": opts.get("max_total"),
+                      "no_candidate": _no_candidate(fitter)})
         last = (fitter, seg, meta)
         if ok and (best is None or (band, total) < (best[3], best[4])):
             best = (fitter, seg, meta, band, total)
     assert last is not None
+    if best is None and _widths_defaulted(kw) and kw.get("max_total") is None:
+        # no verified fit at the default widths: widen each parametrization (in the
+        # order tried) whose search had no candidate; the first verified fit is kept.
+        # Not under a size bound of the caller's: widening to meet it would trade
+        # accuracy for a size the caller chose (mystique at --max-total 16 and
+        # --max-points 300 was widened eight times).
+        for ds in datasets:
+            widened = _widen(ds, tried, kw)
+            if widened is None:
+                continue
+            last = widened[:3]
+            if widened[0].success_:
+                best = widened
+                break
     if best is not None and _widths_defaulted(kw):
         best = _narrow_floor(best, datasets, tried, kw)
     fitter, seg, meta = last if best is None else best[:3]
@@ -326,6 +357,54 @@ def fit_brdf_auto(datasets: list[Dataset], **kw: Any):
 def _widths_defaulted(kw: dict[str, Any]) -> bool:
     """No width and no size from the caller: the defaults are ratfit's to choose."""
     return all(kw.get(k) is None for k in ("dt", "abs_width", "floor_rel", "n", "m", "total"))
+
+
+def _no_candidate(fitter: RationalFitter) -> bool:
+    """Every channel without a verified fit had no candidate at all: each split the
+    search tested was infeasible (status 1) and the time limit cut nothing short.
+    Widening the segments is then the only way to a fit, and a cheap one to try."""
+    failed = [r for r in fitter.results_ if not r.success]
+    return bool(failed) and all(r.status == 1 and not r.time_limited for r in failed)
+
+
+def widened_dt(dt: float) -> float:
+    """The next default width after ``dt`` had no candidate: :data:`WIDEN_FACTOR`
+    times wider, rounded up to a hundredth, at most :data:`MAX_DEFAULT_DT`."""
+    return float(min(np.ceil(100.0 * WIDEN_FACTOR * dt - 1e-9) / 100.0, MAX_DEFAULT_DT))
+
+
+def _widen(ds: Dataset, tried: list[dict[str, Any]], kw: dict[str, Any]) -> tuple | None:
+    """No verified default fit, and the fit of ``ds`` had no candidate at all: refit
+    it at :func:`widened_dt` widths while each try still has none (each such try
+    takes seconds), up to :data:`MAX_DEFAULT_DT`.
+    Returns (fitter, seg, meta, band, total) of the last try, or None when nothing
+    was widened. Each try is recorded in ``tried`` with ``widened_from``."""
+    name = str(ds.meta.get("param_in", "UNKNOWN"))
+    first = next((c for c in tried if c["parametrization"] == name), None)
+    if first is None or not first.get("no_candidate"):
+        return None
+    dt, floor = float(first["dt"]), float(first["floor_rel"])
+    out = None
+    steps: list[float] = []
+    while dt < MAX_DEFAULT_DT:
+        steps.append(dt)
+        new = widened_dt(dt)
+        f2, seg2, meta2 = fit_brdf(ds, **{**kw, "dt": new, "floor_rel": floor})
+        ok = f2.success_
+        total = sum(r.n + r.m for r in f2.results_)
+        none = _no_candidate(f2)
+        tried.append({"parametrization": meta2["parametrization"], "verified": ok,
+                      "coefficients": total if ok else None, "dt": new, "floor_rel": floor,
+                      "searched_up_to": None, "no_candidate": none,
+                      "widened_from": dt})
+        meta2["segments"]["default"] = True
+        # every width that had no candidate, narrowest first
+        meta2["segments"]["widened_from"] = list(steps)
+        out = (f2, seg2, meta2, (new, floor), total)
+        if ok or not none:
+            break
+        dt = new
+    return out
 
 
 def _floor_covers_most(seg: Segments, floor_rel: float) -> bool:
@@ -359,6 +438,8 @@ def _narrow_floor(best: tuple, datasets: list[Dataset], tried: list[dict[str, An
         meta2["segments"]["default"] = True
         meta2["segments"]["narrowed_floor_from"] = float(meta["segments"].get(
             "narrowed_floor_from") or band[1])
+        if meta["segments"].get("widened_from"):  # the dt kept came from a widening
+            meta2["segments"]["widened_from"] = list(meta["segments"]["widened_from"])
         best = (f2, seg2, meta2, (band[0], floor), total2)
     return best
 

@@ -50,7 +50,10 @@ _ISOTROPIC_DEFAULT = {"CARTESIAN": "ISOTROPIC_TV_TL_DPHI"}
                    "and --floor-rel: the file's own intervals, else 0.05 (widened where "
                    "nearby samples need it) with --floor-rel 0.002 (0.001 in "
                    "RUSIN_TH_TD_PD; halved up to twice while the fit stays at most 12 "
-                   "coefficients per channel and most samples lie under the floor).")
+                   "coefficients per channel and most samples lie under the floor). "
+                   "When nothing verifies and every split tested was infeasible, that "
+                   "default is widened 1.5x (up to 0.9) until a try has a candidate "
+                   "(not with --max-total).")
 @click.option("--abs-width", type=float,
               help="Absolute half-width (floor); with --dt each segment takes the larger.")
 @click.option("--floor-rel", type=float,
@@ -134,11 +137,20 @@ def brdf_fit(input_path: Path, output: Path | None, fmt: str | None, param: str 
                 got = (f"{c['coefficients']} coefficients" if c["verified"]
                        else "no verified fit, not kept")
                 return f"floor {c['floor_rel']:g}: {got}"
+            if c.get("widened_from"):
+                got = (f"{c['coefficients']} coefficients" if c["verified"] else
+                       "no candidate either" if c.get("no_candidate") else
+                       "no verified fit")
+                return (f"{c['parametrization']} widened from {c['widened_from']:.3g} "
+                        f"to {c['dt']:.3g}: {got}")
             if c.get("skipped"):
                 return f"{c['parametrization']}: not tried, {c['skipped']}"
             if c["verified"]:
                 return f"{c['parametrization']}: {c['coefficients']} coefficients"
             up = f" up to {c['searched_up_to']} per channel" if c["searched_up_to"] else ""
+            if c.get("no_candidate"):
+                return (f"{c['parametrization']} at {c['dt']:.3g}: no candidate{up} "
+                        "(every split infeasible)")
             return f"{c['parametrization']}: no verified fit{up}"
 
         click.echo(f"parametrization: {meta['parametrization']} ("
@@ -147,9 +159,15 @@ def brdf_fit(input_path: Path, output: Path | None, fmt: str | None, param: str 
                    err=True)
     widths = meta["segments"]
     if widths["default"] and not as_json:
-        why = "" if widths["dt"] == DEFAULT_DT else (
-            f", widened from {DEFAULT_DT:g} so that samples measured at nearly the same "
-            "point have overlapping segments")
+        ladder = widths.get("widened_from") or []
+        base = ladder[0] if ladder else widths["dt"]
+        why = "" if base == DEFAULT_DT else (
+            f", widened from {DEFAULT_DT:g}" + (f" to {base:.3g}" if ladder else "")
+            + " so that samples measured at nearly the same point have overlapping segments")
+        if ladder:
+            why += ("; then to " + ", ".join(f"{w:.3g}" for w in [*ladder[1:], widths["dt"]])
+                    + ": at " + ", ".join(f"{w:.3g}" for w in ladder)
+                    + " every split the search tested was infeasible")
         if widths.get("narrowed_floor_from"):
             why += (f"; floor narrowed from {widths['narrowed_floor_from']:g}: the fit "
                     "there was small and most samples lay under the floor")

@@ -26,6 +26,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 __all__ = [
+    "MAX_DEGREE_CAP",
     "axis_degree_caps",
     "constant_axes",
     "distinct_per_axis",
@@ -58,9 +59,18 @@ def distinct_per_axis(t: ArrayLike, rtol: float = 1e-9) -> NDArray[np.int64]:
     return out
 
 
+# The largest cap written: a fit file accepts no more (ratfit.io.fitfile), and a cap
+# this high never binds, since the k-th index of a graded order has degree < k: it
+# would take more than 10 000 coefficients. Dense scattered data has more distinct
+# values per axis (retro-gray-tape-dense in the half-vector frame: 53 300), and its
+# verified fits were written with caps the loader refused.
+MAX_DEGREE_CAP = 10_000
+
+
 def axis_degree_caps(t: ArrayLike, rtol: float = 1e-9) -> tuple[int, ...]:
-    """Largest degree per axis that the points can carry: distinct values - 1."""
-    return tuple(int(max(c - 1, 0)) for c in distinct_per_axis(t, rtol))
+    """Largest degree per axis that the points can carry: distinct values - 1, at
+    most :data:`MAX_DEGREE_CAP` (which never binds below 10 001 coefficients)."""
+    return tuple(int(min(max(c - 1, 0), MAX_DEGREE_CAP)) for c in distinct_per_axis(t, rtol))
 
 
 def constant_axes(x: ArrayLike) -> NDArray[np.int64]:

@@ -27,6 +27,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from ratfit._atomic import atomic_open
 from ratfit.core.bases import PolynomialSpace
+from ratfit.core.columns import MAX_DEGREE_CAP
 from ratfit.core.rational import RationalFunction
 from ratfit.core.results import FitResult
 from ratfit.core.segments import MAX_DIM, MAX_MAGNITUDE, SPAN_RTOL
@@ -387,7 +388,7 @@ def _space(d: Any, where: str) -> PolynomialSpace:
         raise FileFormatError(f"{where}: {arr.shape[0]} input dimensions (at most {MAX_DIM})")
     md = d.get("max_degree")
     if md is not None and (not isinstance(md, list) or len(md) != arr.shape[0]
-                           or not all(_is_int(v) and 0 <= v <= 10_000 for v in md)):
+                           or not all(_is_int(v) and 0 <= v <= MAX_DEGREE_CAP for v in md)):
         raise FileFormatError(f"{where}: space 'max_degree' must be {arr.shape[0]} integer "
                               "degree caps >= 0")
     var = d.get("variable", "x")
