@@ -107,3 +107,33 @@ def test_orange_tape_dense_in_its_own_angles(shared_data: Path, tmp_path: Path) 
     v = load_brdf_fit(out).eval_coords(ds.x)[:, 0]
     half = np.maximum(0.84 * y, 0.002 * y.max())
     assert np.all(v >= 0) and np.all(np.abs(v - y) <= half * (1 + 1e-9))
+
+
+def test_widening_keeps_the_narrowest_verified_parametrization() -> None:
+    """Every parametrization without a candidate is widened and, as for the default
+    widths, the narrower verified fit wins, whichever was tried first; a ladder stops
+    where it could only be wider than a fit already kept (orange-tape-dense: the
+    half-vector frame verifies at 0.9, its own angles at 0.84, which win)."""
+    x, y_wide = _checkerboard()
+    _, y_narrow = _checkerboard()
+    y_wide = 1.0 + (y_wide - 1.0) * (0.25 / 0.15)  # +-25 %: a constant from dt 0.27
+    first = Dataset(x, y_wide[:, None], None, None, ("th", "td"), ("R",),
+                    {"param_in": PARAM})
+    second = Dataset(x, y_narrow[:, None], None, None, ("a", "b"), ("R",),
+                     {"param_in": "UNKNOWN"})
+    fitter, seg, meta = fit_brdf_auto([first, second])
+    assert fitter.success_ and meta["parametrization"] == "UNKNOWN"
+    assert meta["segments"]["dt"] == 0.18
+    steps = [(c["parametrization"], c["dt"], c["verified"]) for c in meta["candidates"]]
+    assert steps == [(PARAM, 0.05, False), ("UNKNOWN", 0.05, False),
+                     (PARAM, 0.08, False), (PARAM, 0.12, False), (PARAM, 0.18, False),
+                     (PARAM, 0.27, True), ("UNKNOWN", 0.08, False),
+                     ("UNKNOWN", 0.12, False), ("UNKNOWN", 0.18, True)]
+    # the other order: the narrow one verifies first, the wide one's ladder stops
+    # before it reaches a width that could not win
+    _, _, meta2 = fit_brdf_auto([second, first])
+    assert meta2["parametrization"] == "UNKNOWN" and meta2["segments"]["dt"] == 0.18
+    widened_wide = [c["dt"] for c in meta2["candidates"]
+                    if c["parametrization"] == PARAM and c.get("widened_from")]
+    # 0.18 ties (a smaller total could still win); 0.27 is wider: not tried
+    assert widened_wide == [0.08, 0.12, 0.18]

@@ -334,19 +334,21 @@ def fit_brdf_auto(datasets: list[Dataset], **kw: Any):
             best = (fitter, seg, meta, band, total)
     assert last is not None
     if best is None and _widths_defaulted(kw) and kw.get("max_total") is None:
-        # no verified fit at the default widths: widen each parametrization (in the
-        # order tried) whose search had no candidate; the first verified fit is kept.
-        # Not under a size bound of the caller's: widening to meet it would trade
-        # accuracy for a size the caller chose (mystique at --max-total 16 and
+        # no verified fit at the default widths: widen each parametrization whose
+        # search had no candidate; the narrowest verified fit, then the smallest, is
+        # kept (as above), and a ladder stops where it would only be wider than that
+        # (orange-tape-dense: the half-vector frame verifies at 0.9, its own angles at
+        # 0.84). Not under a size bound of the caller's: widening to meet it would
+        # trade accuracy for a size the caller chose (mystique at --max-total 16 and
         # --max-points 300 was widened eight times).
         for ds in datasets:
-            widened = _widen(ds, tried, kw)
+            widened = _widen(ds, tried, kw, None if best is None else best[3])
             if widened is None:
                 continue
             last = widened[:3]
-            if widened[0].success_:
+            if widened[0].success_ and (best is None or (widened[3], widened[4])
+                                        < (best[3], best[4])):
                 best = widened
-                break
     if best is not None and _widths_defaulted(kw):
         best = _narrow_floor(best, datasets, tried, kw)
     fitter, seg, meta = last if best is None else best[:3]
@@ -373,10 +375,12 @@ def widened_dt(dt: float) -> float:
     return float(min(np.ceil(100.0 * WIDEN_FACTOR * dt - 1e-9) / 100.0, MAX_DEFAULT_DT))
 
 
-def _widen(ds: Dataset, tried: list[dict[str, Any]], kw: dict[str, Any]) -> tuple | None:
+def _widen(ds: Dataset, tried: list[dict[str, Any]], kw: dict[str, Any],
+           beat: tuple[float, float] | None = None) -> tuple | None:
     """No verified default fit, and the fit of ``ds`` had no candidate at all: refit
     it at :func:`widened_dt` widths while each try still has none (each such try
-    takes seconds), up to :data:`MAX_DEFAULT_DT`.
+    takes seconds), up to :data:`MAX_DEFAULT_DT`, and only while its (dt, floor_rel)
+    stays at most ``beat`` (a verified fit's, which a wider one cannot win against).
     Returns (fitter, seg, meta, band, total) of the last try, or None when nothing
     was widened. Each try is recorded in ``tried`` with ``widened_from``."""
     name = str(ds.meta.get("param_in", "UNKNOWN"))
@@ -389,6 +393,8 @@ def _widen(ds: Dataset, tried: list[dict[str, Any]], kw: dict[str, Any]) -> tupl
     while dt < MAX_DEFAULT_DT:
         steps.append(dt)
         new = widened_dt(dt)
+        if beat is not None and (new, floor) > beat:
+            break
         f2, seg2, meta2 = fit_brdf(ds, **{**kw, "dt": new, "floor_rel": floor})
         ok = f2.success_
         total = sum(r.n + r.m for r in f2.results_)
