@@ -367,7 +367,7 @@ def test_active_set_takes_the_same_rows_from_a_partial_sort():
 
 def test_lp_margin_falls_back_to_interior_point_when_the_simplex_cycles(monkeypatch) -> None:
     """HiGHS's dual simplex cycles on a few degenerate margin LPs (MERL size: 92 s and
-    118 s inside one split): it is capped at 10 iterations per row and column and the
+    118 s inside one split): it is capped at 2 iterations per row and column and the
     LP goes to the interior-point method, whose margin is the verdict."""
     import scipy.optimize
 
@@ -388,7 +388,7 @@ def test_lp_margin_falls_back_to_interior_point_when_the_simplex_cycles(monkeypa
 
     monkeypatch.setattr(scipy.optimize, "linprog", linprog)
     c = qp._lp_margin(An)
-    assert calls == [("highs-ds", 10 * (40 + 4)), ("highs-ipm", None)]
+    assert calls == [("highs-ds", 2 * (40 + 4)), ("highs-ipm", None)]
     assert c is not None and np.all(An @ c > 0.1)
     # both give up: no verdict, never "no point"
     monkeypatch.setattr(scipy.optimize, "linprog", lambda *a, **k: scipy.optimize.OptimizeResult(

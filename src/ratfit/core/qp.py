@@ -508,11 +508,12 @@ def _cross_check(A: Array, kind: str, time_limit: float | None = None) -> Array 
 def _lp_margin(An: Array, time_limit: float | None = None) -> Array | None:
     """max s  s.t.  An c >= s, -1 <= c <= 1 (HiGHS through SciPy).
 
-    Dual simplex first, capped at 10 iterations per row and column: it needs
-    fewer than one on these LPs, but on a few degenerate ones it cycles (MERL size:
-    one 554 x 35 LP ran 92 s, another 476 x 31 one 118 s, inside one split). Past the
-    cap the same LP goes to HiGHS's interior-point method (0.02 s on both, with
-    crossover to a vertex); a verdict only from one of the two."""
+    Dual simplex first, capped at 2 iterations per row and column: it needs fewer
+    than 0.5 on these LPs (93 measured), but on a few degenerate ones it cycles (MERL
+    size: one 554 x 35 LP ran 92 s, another 476 x 31 one 118 s, inside one split; a
+    3976 x 50 one of retro-3M-jaune-dense reached a cap of 10 per row in 9.5 s). Past
+    the cap the same LP goes to HiGHS's interior-point method (0.02 s, 0.02 s and
+    0.43 s on those, with crossover to a vertex); a verdict only from one of the two."""
     from scipy.optimize import linprog
 
     rows, k = An.shape
@@ -520,7 +521,7 @@ def _lp_margin(An: Array, time_limit: float | None = None) -> Array | None:
     cost[-1] = -1.0
     a_ub = np.hstack([-An, np.ones((rows, 1))])
     t0 = time.perf_counter()
-    for method, cap in (("highs-ds", 10 * (rows + k)), ("highs-ipm", None)):
+    for method, cap in (("highs-ds", 2 * (rows + k)), ("highs-ipm", None)):
         # no presolve: on these dense LPs (thousands of rows, ~50 columns) it finds
         # nothing to remove and costs 15-20 % of the solve (same margins measured)
         opts: dict[str, float | bool] = {"presolve": False}
