@@ -297,12 +297,11 @@ def fit_brdf_auto(datasets: list[Dataset], **kw: Any):
     last try's result is returned.
 
     With default widths (no width, no size and no ``max_total`` given) and no
-    verified fit, each
-    parametrization whose search had no candidate at all (every split infeasible,
-    nothing cut short by the time limit: known in seconds) is fitted again at
-    :func:`widened_dt` widths until a try has candidates (:func:`_widen`); the first
-    verified one is kept and ``meta["segments"]["widened_from"]`` lists the widths
-    that had none.
+    verified fit, each parametrization whose search had no candidate at all (every
+    split infeasible, nothing cut short by the time limit: known in seconds) is fitted
+    again at :func:`widened_dt` widths until a try has candidates (:func:`_widen`);
+    of the verified ones the same rule keeps the best, and
+    ``meta["segments"]["widened_from"]`` lists the widths that had none.
     """
     if not datasets:
         raise InputError("fit_brdf_auto needs at least one dataset")
@@ -323,14 +322,12 @@ def fit_brdf_auto(datasets: list[Dataset], **kw: Any):
                 opts["max_total"] = min(cap, int(kw.get("max_total") or cap))
         fitter, seg, meta = fit_brdf(ds, **opts)
         band = float(meta["segments"]["dt"] or 0.0), float(meta["segments"]["floor_rel"] or 0.0)
-        ok = fitter.success_
-        total = sum(r.n + r.m for r in fitter.results_)
-        tried.append({"parametrization": meta["parametrization"], "verified": ok,
-                      "coefficients": total if ok else None, "dt": band[0],
-                      "floor_rel": band[1], "searched_up_to": opts.get("max_total"),
-                      "no_candidate": _no_candidate(fitter)})
+        entry = _tried(fitter, meta, band, opts.get("max_total"),
+                       no_candidate=_no_candidate(fitter))
+        tried.append(entry)
         last = (fitter, seg, meta)
-        if ok and (best is None or (band, total) < (best[3], best[4])):
+        total = entry["coefficients"]
+        if entry["verified"] and (best is None or (band, total) < (best[3], best[4])):
             best = (fitter, seg, meta, band, total)
     assert last is not None
     if best is None and _widths_defaulted(kw) and kw.get("max_total") is None:
@@ -359,6 +356,16 @@ def fit_brdf_auto(datasets: list[Dataset], **kw: Any):
 def _widths_defaulted(kw: dict[str, Any]) -> bool:
     """No width and no size from the caller: the defaults are ratfit's to choose."""
     return all(kw.get(k) is None for k in ("dt", "abs_width", "floor_rel", "n", "m", "total"))
+
+
+def _tried(fitter: RationalFitter, meta: dict[str, Any], band: tuple[float, float],
+           searched_up_to: int | None, **extra: Any) -> dict[str, Any]:
+    """One entry of ``meta["candidates"]``: a fit tried at segments ``band``
+    (dt, floor_rel); ``coefficients`` over all channels when verified."""
+    ok = bool(fitter.success_)
+    return {"parametrization": meta["parametrization"], "verified": ok,
+            "coefficients": sum(r.n + r.m for r in fitter.results_) if ok else None,
+            "dt": band[0], "floor_rel": band[1], "searched_up_to": searched_up_to, **extra}
 
 
 def _no_candidate(fitter: RationalFitter) -> bool:
@@ -396,18 +403,14 @@ def _widen(ds: Dataset, tried: list[dict[str, Any]], kw: dict[str, Any],
         if beat is not None and (new, floor) > beat:
             break
         f2, seg2, meta2 = fit_brdf(ds, **{**kw, "dt": new, "floor_rel": floor})
-        ok = f2.success_
-        total = sum(r.n + r.m for r in f2.results_)
         none = _no_candidate(f2)
-        tried.append({"parametrization": meta2["parametrization"], "verified": ok,
-                      "coefficients": total if ok else None, "dt": new, "floor_rel": floor,
-                      "searched_up_to": None, "no_candidate": none,
-                      "widened_from": dt})
+        entry = _tried(f2, meta2, (new, floor), None, no_candidate=none, widened_from=dt)
+        tried.append(entry)
         meta2["segments"]["default"] = True
         # every width that had no candidate, narrowest first
         meta2["segments"]["widened_from"] = list(steps)
-        out = (f2, seg2, meta2, (new, floor), total)
-        if ok or not none:
+        out = (f2, seg2, meta2, (new, floor), entry["coefficients"])
+        if entry["verified"] or not none:
             break
         dt = new
     return out
@@ -433,20 +436,17 @@ def _narrow_floor(best: tuple, datasets: list[Dataset], tried: list[dict[str, An
                   if str(d.meta.get("param_in", "UNKNOWN")) == meta["parametrization"])
         floor = band[1] / 2
         f2, seg2, meta2 = fit_brdf(ds, **{**kw, "dt": band[0], "floor_rel": floor})
-        ok = f2.success_
-        total2 = sum(r.n + r.m for r in f2.results_)
-        tried.append({"parametrization": meta2["parametrization"], "verified": ok,
-                      "coefficients": total2 if ok else None, "dt": band[0],
-                      "floor_rel": floor, "searched_up_to": kw.get("max_total"),
-                      "narrowed_floor_from": band[1]})
-        if not ok:
+        entry = _tried(f2, meta2, (band[0], floor), kw.get("max_total"),
+                       narrowed_floor_from=band[1])
+        tried.append(entry)
+        if not entry["verified"]:
             break
         meta2["segments"]["default"] = True
         meta2["segments"]["narrowed_floor_from"] = float(meta["segments"].get(
             "narrowed_floor_from") or band[1])
         if meta["segments"].get("widened_from"):  # the dt kept came from a widening
             meta2["segments"]["widened_from"] = list(meta["segments"]["widened_from"])
-        best = (f2, seg2, meta2, (band[0], floor), total2)
+        best = (f2, seg2, meta2, (band[0], floor), entry["coefficients"])
     return best
 
 
