@@ -152,3 +152,53 @@ def test_polish_past_the_time_limit_keeps_the_search_fit(monkeypatch) -> None:
     rm = [float(np.sqrt(np.mean((f.result_.rational(seg.x) - seg.center[:, 0]) ** 2)))
           for f in (polished, cut)]
     assert rm[0] < rm[1]
+
+
+def test_spread_keeps_points_from_the_whole_list() -> None:
+    from ratfit.brdf.fitter import _spread
+
+    pts = np.arange(3000.0)[:, None] * np.ones((1, 3))
+    out = _spread(pts, 500)
+    assert out.shape == (500, 3)
+    assert out[0, 0] == 0.0 and out[-1, 0] == 2999.0  # both ends of the list
+    assert np.all(np.diff(out[:, 0]) >= 5)  # evenly spaced, no repeats
+    assert _spread(pts[:200], 500) is not None and len(_spread(pts[:200], 500)) == 200
+
+
+def test_repair_adds_spread_bad_points_round_after_round(monkeypatch) -> None:
+    """retro-3M-jaune-dense: a repair's q still dips below 0 between the validity points
+    after 3 rounds (by 1e-7..1e-9 of max|q|), and the check's bad points listed first
+    all lie in one corner. Each round adds ROUND_POINTS spread over every bad point,
+    for up to REPAIR_ROUNDS rounds: here the 7th round's fit is valid."""
+    import ratfit.brdf.fitter as F
+    import ratfit.core.polish as polish
+    from ratfit.brdf.validity import ValidityCheck
+
+    rf, seg = _candidate(lambda X: 1.0 + X[:, 0] ** 2, lambda X: 2.0 + X[:, 1])
+    fitter = _fitter()
+    fitter._checks, fitter._shared_extra = {}, []
+    sizes: list[int] = []
+    added: list[np.ndarray] = []
+    bad = np.stack([np.linspace(0.1, 1.2, 4000), np.full(4000, 0.5), np.zeros(4000)], 1)
+
+    def fake_polish(rf_, seg_, j, *, positive_at, **kw):
+        sizes.append(len(positive_at))
+        added.append(np.asarray(positive_at))
+        return RationalFunction(rf_.space, rf_.p.copy(), rf_.q.copy())
+
+    def fake_verify(self, cand, seg_, j):
+        ver = F.verify(cand, seg_, channel=j, box_check=False)
+        if len(sizes) < 7:
+            self._checks[id(cand)] = ValidityCheck(False, 1, -1e-8, -np.inf, bad, "test")
+            return F.replace(ver, verified=False)
+        return ver
+
+    monkeypatch.setattr(polish, "polish_fit", fake_polish)
+    monkeypatch.setattr(BRDFFitter, "_verify", fake_verify)
+    out = fitter._repair(rf, seg, 0)
+    assert out is not None and len(sizes) == 7 <= F.REPAIR_ROUNDS
+    # each round: ROUND_POINTS more, spread from the first bad point to the last
+    assert np.all(np.diff(sizes) == F.ROUND_POINTS)
+    spread = F._spread(bad, F.ROUND_POINTS)
+    assert np.array_equal(added[1][sizes[0]:], spread)
+    assert spread[0, 0] == 0.1 and spread[-1, 0] == 1.2

@@ -86,6 +86,18 @@ FLOOR_REFINEMENTS = 2
 WIDEN_FACTOR = 1.5
 MAX_DEFAULT_DT = 0.9
 _HAS_HALF_VECTOR_ALTERNATIVE = ("ISOTROPIC_TV_TL_DPHI", "ISOTROPIC_TL_TV_PROJ_DPHI")
+# A repair (a candidate that meets every segment but is negative or through a pole
+# between the samples, polished under the validity rows) adds the points where the
+# dense check still finds q <= 0 or r < 0 and polishes again, up to REPAIR_ROUNDS
+# times (a round: 0.1-0.5 s at retro-3M-jaune-dense's 60-100 coefficients, where
+# rounds 3-9 turned most rejected candidates into verified fits: q's dips shrank
+# from 1e-4 to 1e-9 of max|q| over rounds). Each round adds ROUND_POINTS of the
+# check's bad points, and each rejected candidate SEARCH_POINTS to every later
+# split's rows: spread over all of them, not the first ones in grid order (one
+# corner of the domain).
+REPAIR_ROUNDS = 10
+ROUND_POINTS = 500
+SEARCH_POINTS = 200
 
 
 def cos_theta_l(coords: ArrayLike, param: str) -> Array:
@@ -613,7 +625,7 @@ class BRDFFitter(RationalFitter):
             chk = self._checks.get(id(cand))
             if chk is None or not len(chk.bad_points) or pts is None:
                 return None
-            pts = np.concatenate([pts, chk.bad_points[:500]])
+            pts = np.concatenate([pts, _spread(chk.bad_points, ROUND_POINTS)])
         return None
 
     def _polish_deadline(self) -> float | None:
@@ -630,8 +642,8 @@ class BRDFFitter(RationalFitter):
         often valid at the same size (the minimum-norm point is the wildest one)."""
         # the QP only: repairs run many times per search, the cone program is slower
         # (garnet_red: 103 s of Clarabel in 12 repairs, 30 s for the whole fit without)
-        return self._polish_rounds(rf, seg, j, self._polish_deadline(), rounds=3, method="qp",
-                                   repair=True)
+        return self._polish_rounds(rf, seg, j, self._polish_deadline(), rounds=REPAIR_ROUNDS,
+                                   method="qp", repair=True)
 
     def _polished(self, res: FitResult, seg: Segments, j: int) -> FitResult:
         """``res`` with its rational replaced by the least-squares polish when that
@@ -730,7 +742,7 @@ class BRDFFitter(RationalFitter):
         self._checks[id(rf)] = chk
         if len(chk.bad_points):
             # constraint generation: later splits keep q > 0, p >= 0 there too
-            self._extra.append(chk.bad_points[:200])
+            self._extra.append(_spread(chk.bad_points, SEARCH_POINTS))
         if np.all(seg.lo[:, j] >= 0):
             # every (finite) value is inside its segment here (checked above): r >= lo >= 0
             at_samples = True
@@ -741,6 +753,14 @@ class BRDFFitter(RationalFitter):
               and not ver.denominator_sign_changes)
         return replace(ver, verified=ok,
                        denominator_sign_changes=ver.denominator_sign_changes or chk.min_q <= 0)
+
+
+def _spread(points: Array, k: int) -> Array:
+    """At most ``k`` of ``points``, evenly over the array (the check lists them in
+    grid order: the first ``k`` would all lie in one corner of the domain)."""
+    if len(points) <= k:
+        return points
+    return points[np.linspace(0, len(points) - 1, k).round().astype(np.int64)]
 
 
 def _past(deadline: float | None) -> bool:
