@@ -75,7 +75,14 @@ def run_one(path: Path, rounds: int, timeout: float) -> dict:
         chans = doc.get("channels") or ([doc] if "n" in doc else [])
         dt = json.loads(out.read_text())["brdf"]["segments"]["dt"] if out.exists() else None
         metrics = next(iter((doc.get("metrics") or {}).values()), {})
-        return {"dt": dt, "rmse": metrics.get("rmse"), "log_rmse": metrics.get("log_rmse"),
+        tried = "; ".join(
+            f"{c['parametrization']} {c['dt']:g}: "
+            + (str(c["coefficients"]) if c.get("verified") else
+               "no candidate" if c.get("no_candidate") else
+               str(c.get("skipped") or "none verified"))
+            for c in doc.get("parametrization_candidates") or [])
+        return {"tried": tried, "dt": dt, "rmse": metrics.get("rmse"),
+                "log_rmse": metrics.get("log_rmse"),
                 "rc": res.returncode, "secs": secs, "peak_mb": peak,
                 "written": out.exists(), "param": doc.get("parametrization", "-"),
                 "sizes": " ".join(f"{c.get('n')}+{c.get('m')}" for c in chans),
@@ -103,7 +110,8 @@ def main() -> None:
                 got.append(res)
                 ok = res["rc"] == 0 and res.get("verified") and res.get("written")
                 print(f"{name} rounds {r} run {i + 1}: rc {res['rc']}, {res['secs']:.1f} s"
-                      f"{', verified ' + res['sizes'] if ok else ''}", file=sys.stderr,
+                      f"{', verified ' + res['sizes'] if ok else ''}; tried {res.get('tried')}",
+                      file=sys.stderr,
                       flush=True)
                 rows.append([name, str(r), str(i + 1),
                              "timeout" if res["rc"] is None else str(res["rc"]),
