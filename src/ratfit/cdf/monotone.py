@@ -43,6 +43,7 @@ from numpy.typing import ArrayLike, NDArray
 from ratfit.core.bases import PolynomialSpace
 from ratfit.core.rational import RationalFunction
 from ratfit.core.segments import Segments
+from ratfit.core.systems import spread_indices
 from ratfit.core.verify import Verification, verify
 from ratfit.errors import InputError
 from ratfit.fitting.search import RationalFitter, SearchParts, SeedSystems
@@ -309,7 +310,7 @@ class MonotoneSystem:
     def spread_subset(self, size: int) -> NDArray[np.int64]:
         if size >= self.n_points:
             return np.arange(self.n_points)
-        pick = self._order[np.linspace(0, self.n_points - 1, size).round().astype(np.int64)]
+        pick = self._order[spread_indices(self.n_points, size)]
         extra = [np.argmin(self.U - self.L)]
         return np.unique(np.concatenate([pick, np.asarray(extra, dtype=np.int64)]))
 

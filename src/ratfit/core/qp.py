@@ -25,7 +25,13 @@ from ratfit.core.bases import PolynomialSpace
 from ratfit.core.rational import RationalFunction
 from ratfit.core.segments import Segments
 from ratfit.core.solvers import first_available, solve_qp
-from ratfit.core.systems import PositiveDenominator, RowSystem, denominator_cuts, smallest
+from ratfit.core.systems import (
+    PositiveDenominator,
+    RowSystem,
+    denominator_cuts,
+    smallest,
+    spread_indices,
+)
 from ratfit.errors import InputError
 
 __all__ = [
@@ -63,7 +69,7 @@ class ChannelPoints:
         """``size`` points spread along the data, plus the extreme segments."""
         if size >= self.n_points:
             return np.arange(self.n_points)
-        pick = self.order[np.linspace(0, self.n_points - 1, size).round().astype(np.int64)]
+        pick = self.order[spread_indices(self.n_points, size)]
         mid = 0.5 * (self.lo + self.hi)
         extra = [np.argmax(mid), np.argmin(mid), np.argmin(self.hi - self.lo)]
         return np.unique(np.concatenate([pick, np.asarray(extra, dtype=np.int64)]))
@@ -827,7 +833,7 @@ def sk_denominator(space: PolynomialSpace, seg: Segments, channel: int | Sequenc
     t_all = space.to_window(seg.x) if like is None else like.t
     if seg.n_points > max_points:
         order = np.lexsort(t_all.T[::-1]) if like is None else like._order
-        pick = order[np.linspace(0, seg.n_points - 1, max_points).round().astype(np.int64)]
+        pick = order[spread_indices(seg.n_points, max_points)]
         pick = np.unique(pick)
     else:
         pick = np.arange(seg.n_points)

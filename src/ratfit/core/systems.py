@@ -28,7 +28,7 @@ from ratfit.core.bases import PolynomialSpace
 from ratfit.core.rational import RationalFunction
 
 __all__ = ["AppendedRows", "LazyRows", "PositiveDenominator", "RowSystem", "denominator_cuts",
-           "domain_grid", "smallest"]
+           "domain_grid", "smallest", "spread_indices"]
 
 Array = NDArray[np.float64]
 
@@ -251,6 +251,14 @@ def smallest(values: Array, count: int) -> NDArray[np.int64]:
     return np.argpartition(values, count - 1)[:count]
 
 
+def spread_indices(n: int, count: int) -> NDArray[np.int64]:
+    """``count`` indices of 0 .. n - 1 evenly spaced from the first to the last (all
+    of them when ``count >= n``): a subset that covers a sorted list end to end."""
+    if count >= n:
+        return np.arange(n)
+    return np.linspace(0, n - 1, count).round().astype(np.int64)
+
+
 def domain_grid(dim: int, n_data: int) -> Array:
     """The dense grid (window coordinates) on which q's sign is checked.
 
@@ -298,13 +306,12 @@ def denominator_cuts(rf: RationalFunction, grid: Array | None = None,
                 picks.append(grid[sorted(idx)])
     elif bad.any():
         where = np.flatnonzero(bad)
-        spread = where[np.linspace(0, where.size - 1, min(where.size, max_cuts - 1))
-                       .round().astype(np.int64)]
+        spread = where[spread_indices(where.size, max_cuts - 1)]
         worst = where[int(np.argmin(np.nan_to_num(qg[where], nan=-np.inf)))]
         picks.append(grid[np.unique(np.r_[spread, worst])])
     if not picks:
         return np.zeros((0, space.dim))
     z = np.unique(np.vstack(picks), axis=0)
     if z.shape[0] > max_cuts:
-        z = z[np.linspace(0, z.shape[0] - 1, max_cuts).round().astype(np.int64)]
+        z = z[spread_indices(z.shape[0], max_cuts)]
     return z

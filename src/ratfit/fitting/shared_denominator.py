@@ -53,7 +53,7 @@ from ratfit.core.qp import (
 from ratfit.core.rational import RationalFunction
 from ratfit.core.results import STATUS_MESSAGES, FitResult
 from ratfit.core.segments import Segments
-from ratfit.core.systems import denominator_cuts, domain_grid
+from ratfit.core.systems import denominator_cuts, domain_grid, spread_indices
 from ratfit.core.verify import Verification, verify
 from ratfit.errors import InputError
 from ratfit.fitting.search import RationalFitter
@@ -172,7 +172,7 @@ class SharedSystem:
         if size >= N:
             pts = np.arange(N)
         else:
-            pts = self._order[np.linspace(0, N - 1, size).round().astype(np.int64)]
+            pts = self._order[spread_indices(N, size)]
             extra = [np.argmin(self.hi_s - self.lo_s) % N]
             pts = np.unique(np.concatenate([pts, np.asarray(extra, dtype=np.int64)]))
         return np.concatenate([c * 2 * N + np.r_[pts, N + pts] for c in range(self.K)])
