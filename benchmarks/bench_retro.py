@@ -36,27 +36,28 @@ FILES = ("retro-3M-jaune-dense.dat",)
 
 
 def child(rounds: int, args: list[str]) -> None:
-    """The CLI with ``REPAIR_ROUNDS`` set; runs in a child process."""
+    """The CLI with ``REPAIR_ROUNDS`` set, then this process's peak memory on stderr;
+    runs in a child process (``--child ROUNDS CLI-ARGS...``)."""
+    import resource
+
     import ratfit.brdf.fitter as fitter
     from ratfit.cli import main
 
     fitter.REPAIR_ROUNDS = rounds
-    main(args=args, prog_name="ratfit", standalone_mode=True)
+    code: int | str | None = 0
+    try:
+        main(args=args, prog_name="ratfit", standalone_mode=True)
+    except SystemExit as e:
+        code = e.code
+    print("PEAK", resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0, file=sys.stderr)
+    sys.exit(code)
 
 
 def run_one(path: Path, rounds: int, timeout: float) -> dict:
     """One default fit in a child process: exit code, seconds, peak MB, fit summary."""
     with tempfile.TemporaryDirectory() as tmp:
         out = Path(tmp) / "fit.json"
-        cmd = [sys.executable, "-c",
-               "import resource, sys; sys.path.insert(0, sys.argv[1]);"
-               "import bench_retro as b;"
-               "code = 0\n"
-               "try: b.child(int(sys.argv[2]), sys.argv[3:])\n"
-               "except SystemExit as e: code = e.code or 0\n"
-               "print('PEAK', resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0,"
-               " file=sys.stderr); sys.exit(code)",
-               str(Path(__file__).resolve().parent), str(rounds),
+        cmd = [sys.executable, __file__, "--child", str(rounds),
                "brdf", "fit", str(path), "-o", str(out), "--json"]
         t0 = time.perf_counter()
         try:
@@ -91,6 +92,8 @@ def run_one(path: Path, rounds: int, timeout: float) -> dict:
 
 
 def main() -> None:
+    if sys.argv[1:2] == ["--child"]:
+        child(int(sys.argv[2]), sys.argv[3:])
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--runs", type=int, default=3)
     ap.add_argument("--rounds", default="3,10",
