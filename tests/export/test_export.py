@@ -290,3 +290,80 @@ def fit_document_from(saved):
                      for c in saved.channels],
         "provenance": {},
     }
+
+
+# ---------------------------------------------------------------------------- injection
+# Each payload ends a one-line comment in at least one language (newline, lone CR, a C/GLSL
+# line splice, Unicode line breaks, a trigraph splice, a block-comment end) and then runs
+# code if it is read as code.
+_PAYLOADS = [
+    "fit\nimport os; open('PWNED', 'w').write('x')\n#",
+    "fit\rimport os; open('PWNED', 'w').write('x')\r#",
+    "fit\\\n__attribute__((constructor)) static void pw(void){fopen(\"PWNED\",\"w\");}\n//",
+    "fit ??/\nint pwned = 1;",
+    "fit\u2028import os\u2029#\x0b\x0c\x85*/ #error injected",
+    "fit\n#error injected\n",
+]
+
+
+@pytest.mark.parametrize("lang", ["python", "c", "glsl"])
+def test_text_from_a_fit_file_never_becomes_code(fits, tmp_path, monkeypatch, lang):
+    """Hostile file and channel names reach the generated source only as inert text: the
+    source compiles, every comment line stays one line, and running it evaluates the fit and
+    does nothing else (no PWNED file, no extra top-level statement)."""
+    import ast
+    import importlib.util
+
+    monkeypatch.chdir(tmp_path)
+    saved = fits["1d"]
+    doc = fit_document_from(saved)
+    for j, ch in enumerate(doc["channels"]):
+        ch["name"] = _PAYLOADS[j % len(_PAYLOADS)] + f"{j}"
+    runner = CliRunner()
+    for k, payload in enumerate(_PAYLOADS):
+        name = payload.replace("/", "|") + ".json"  # a file name cannot hold "/"
+        try:
+            fit_path = tmp_path / name
+            save_fit(fit_path, doc)
+        except (OSError, ValueError):
+            continue
+        out = tmp_path / f"out{k}.{ {'python': 'py', 'c': 'c', 'glsl': 'glsl'}[lang] }"
+        r = runner.invoke(main, ["export", str(fit_path), "--lang", lang, "-o", str(out)])
+        assert r.exit_code == 0, r.output
+        text = out.read_text(encoding="ascii")  # every byte is ASCII
+        assert "\r" not in text and "\\\n" not in text and "??/" not in text
+        head = text.split("\n\n")[0].split("\n")
+        cm = "#" if lang == "python" else "//"
+        assert all(ln.startswith(cm + " ") for ln in head), head
+        assert "PWNED" not in "".join(ln for ln in text.splitlines()  # but as a string
+                                      if not ln.lstrip().startswith((cm, "CHANNELS = ")))
+        directives = [ln for ln in text.splitlines() if ln.lstrip().startswith("#")
+                      and lang != "python"]
+        assert all(d.startswith(("#define RATFIT_", "#include <math.h>")) for d in directives)
+        if lang == "python":
+            tree = ast.parse(text)
+            kinds = {type(n).__name__ for n in tree.body}
+            assert kinds <= {"Expr", "Import", "Assign", "FunctionDef"}, kinds
+            spec = importlib.util.spec_from_file_location(f"exported{k}", out)
+            mod = importlib.util.module_from_spec(spec)
+            spec.loader.exec_module(mod)
+            assert mod.CHANNELS == tuple(c["name"] for c in doc["channels"])
+            x = 1.3
+            ref = saved.channels[0].rational(np.array([[x]]))[0]
+            assert mod.ratfit_eval([x])[0] == pytest.approx(ref, rel=1e-12)
+        elif lang == "c":
+            pts = _points(saved, n=5)
+            got = _run_c(tmp_path, text, 1, "ratfit_eval(x, out)", pts)
+            ref = np.column_stack([c.rational(pts) for c in saved.channels])
+            _close(got, ref)
+        else:
+            need_tool("glslangValidator", "the exported GLSL is validated with it")
+            shader = tmp_path / f"s{k}.frag"
+            shader.write_text("#version 330\n" + text + "out vec4 color;\nvoid main() {\n"
+                              "    float x[RATFIT_DIM]; x[0] = 1.0;\n"
+                              "    float r[RATFIT_NCHANNELS]; ratfit_eval(x, r);\n"
+                              "    color = vec4(r[0]);\n}\n")
+            res = subprocess.run(["glslangValidator", str(shader)], capture_output=True,
+                                 text=True)
+            assert res.returncode == 0, res.stdout + res.stderr
+    assert not (tmp_path / "PWNED").exists()

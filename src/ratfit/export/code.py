@@ -244,6 +244,32 @@ class _Lang:
         return s
 
 
+# Characters a comment may hold as they are: printable ASCII without the backslash (a C or
+# GLSL line splice when it ends a line), "?" (C trigraphs), "*" (the end of a block comment)
+# and "%" (the escape character below). Everything else is written as %XX of its UTF-8 bytes.
+_COMMENT_SAFE = frozenset(
+    chr(c) for c in range(0x20, 0x7F) if chr(c) not in "\\?*%"
+)
+
+
+def comment_text(text: str) -> str:
+    """``text`` made inert inside a one-line comment of C, GLSL and Python.
+
+    File names, channel names and every other string that came from a file reach the
+    generated code only through here (or as a Python ``repr`` literal): a newline, a
+    carriage return or a line splice in them would end the comment and turn the rest into
+    code. Unsafe characters become %XX of their UTF-8 bytes (a lone surrogate from an
+    undecodable file name too), so the comment still says what the name was.
+    """
+    out = []
+    for ch in text:
+        if ch in _COMMENT_SAFE:
+            out.append(ch)
+        else:
+            out.extend(f"%{b:02X}" for b in ch.encode("utf-8", "surrogateescape"))
+    return "".join(out)
+
+
 _C = _Lang("c", "double", "//")
 _GLSL = _Lang("glsl", "float", "//")
 _PY = _Lang("python", "float", "#")
@@ -633,16 +659,17 @@ def export_source(
     for f in forms:
         head.append(f"{cm} channel {f.name!r}: {f.form} ({f.reason}).")
     if pname:
-        head.append(f"{cm} Input coordinates: {pname}, computed from directions by *_coords.")
+        head.append(f"{cm} Input coordinates: {pname}, computed from directions by the "
+                    "coords function.")
     if lang_key == "glsl":
         head.append(f"{cm} GLSL 3.30+; float precision. Include in a shader (no #version here).")
-    lines = list(head)
+    lines = [cm + " " + comment_text(h[len(cm) + 1:]) for h in head]
     lines.append("")
     py = lang_key == "python"
     if py:
         lines += ['"""ratfit export (see the comments above)."""', "", "import math", "",
                   f"RATFIT_DIM = {d}", f"RATFIT_NCHANNELS = {k}",
-                  f"CHANNELS = {tuple(f.name for f in forms)!r}", ""]
+                  f"CHANNELS = {ascii(tuple(f.name for f in forms))}", ""]
     elif lang_key == "c":
         lines += ["#include <math.h>", "", f"#define RATFIT_DIM {d}",
                   f"#define RATFIT_NCHANNELS {k}", ""]
