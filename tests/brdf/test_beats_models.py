@@ -34,7 +34,8 @@ def test_default_fit_of_acryl_blue_beats_lambert_ggx(shared_data: Path) -> None:
                                 "floor_rel": HALF_VECTOR_FLOOR_REL, "default": True}
     # the angles' default segments are wider (floor 0.2 %): not tried
     assert meta["candidates"][1]["skipped"]
-    assert fitter.success_ and all(str(v).startswith("valid on") for v in meta["validity"])
+    assert fitter.success_ and all(str(v).startswith("proved") for v in meta["validity"])
+    assert all(p["proved"] and p["q_margin"] > 0 for p in meta["proof"])
     pred = np.stack([r.rational(seg.x) for r in fitter.results_], axis=1)
     L, V = get_parametrization(iso).to_dirs(ds.x)
     assert np.array_equal(seg.center, ds.y)  # the same samples, in the same order

@@ -109,7 +109,7 @@ def test_channels_side_by_side_give_each_channel_its_own_answer(shared_data: Pat
         assert (b.n, b.m) == (a.n, a.m), name
         r = b.rational(seg.x)
         assert np.all((seg.lo[:, j] <= r) & (r <= seg.hi[:, j]))
-        assert meta["validity"][j].startswith("valid on ")
+        assert meta["validity"][j].startswith("proved: ")
     assert seen == [2]  # the single-channel fits ran in turn
 
 

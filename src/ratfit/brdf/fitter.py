@@ -25,7 +25,11 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from ratfit.brdf.parametrizations import find_parametrization, get_parametrization
+from ratfit.brdf.parametrizations import (
+    check_dirs,
+    find_parametrization,
+    get_parametrization,
+)
 from ratfit.core.bases import PolynomialSpace
 from ratfit.core.qp import ArnoldiSystem
 from ratfit.core.rational import RationalFunction
@@ -67,7 +71,11 @@ _NEEDS_THETA_L = ("full", "isotropic", "tv_tl")
 # Its default floor is half as wide: measured on the five Cornell materials against
 # lambert+ggx / lambert+beckmann, it wins all three errors in 12 of 15 channels at
 # 0.1 % (5 of 15 at 0.2 %), with 7-34 coefficients per channel.
-HALF_VECTOR = "RUSIN_TH_TD_PD"
+HALF_VECTOR = "RUSIN_TH_TD_SYM"
+# Valid points of a grid of the coordinate box (faces included) that join the angle grid
+# as validity rows: the proof covers the whole evaluated region, and the angle grid
+# leaves the band next to the mirror direction (theta_h -> 0) nearly empty.
+BOX_POINTS = 8000
 HALF_VECTOR_FLOOR_REL = 0.001
 # A default fit this small (per channel, at most) whose floor covers most samples has
 # accuracy to spare: its segments are absolute widths almost everywhere, as wide as
@@ -275,9 +283,18 @@ def fit_brdf(ds: Dataset, *, dt: float | None = None, abs_width: float | None = 
                         f"{ds.meta['subset']['of']} samples"),
         "dropped_coords": {str(int(i)): float(full.x[0, i]) for i in dropped},
         # what "verified" covered beyond the samples, per channel
-        "validity": [None if v is None else v.summary() for v in fitter.validity_],
+        "validity": [_validity_line(v, pr) for v, pr in
+                     zip(fitter.validity_, fitter.proofs_, strict=True)],
+        # the proof of q > 0 and p >= 0 where the fit is evaluated, per channel
+        "proof": [None if v is None else v.to_dict() for v in fitter.proofs_],
     }
     return fitter, seg, meta
+
+
+def _validity_line(check: Any, proof: Any) -> str | None:
+    """What the dense check and the proof said about a channel's fit, in one line."""
+    parts = [x.summary() for x in (proof, check) if x is not None]
+    return "; dense check: ".join(parts) if parts else None
 
 
 def candidate_parametrizations(param: str) -> tuple[str, ...]:
@@ -558,12 +575,40 @@ class BRDFFitter(RationalFitter):
             with one_blas_thread():
                 self.results_ = [self._polished(r, segments, j) if r.success else r
                                  for j, r in enumerate(self.results_)]
-        # what the dense validity check said about each channel's chosen fit
+        if self.physical and find_parametrization(self.parametrization) is not None:
+            self.results_ = [self._proved(r, segments, j) if r.success else r
+                             for j, r in enumerate(self.results_)]
+        # what the dense validity check and the proof said about each channel's chosen fit
         self.validity_ = [
             self._checks.get(id(r.rational)) if r.rational is not None else None
             for r in self.results_
         ]
+        proofs = self.__dict__.get("_proofs", {})
+        self.proofs_ = [proofs.get(id(r.rational)) if r.rational is not None else None
+                        for r in self.results_]
         return self
+
+    def _proved(self, res: FitResult, seg: Segments, j: int) -> FitResult:
+        """``res`` with its rational in the space's own family (the coefficients a fit file
+        stores and every evaluator uses), verified again at every sample and proved valid
+        (q > 0, p >= 0) on the evaluated region: the proof is about exactly those numbers.
+        A fit that fails either is no success."""
+        from ratfit.brdf.validity import prove_validity
+
+        rf = res.rational
+        assert rf is not None
+        fam = rf.to_family()
+        ver = verify(fam, seg, channel=j, box_check=False)
+        proof = prove_validity(fam, self.parametrization, keep=getattr(self, "_keep", None))
+        self.__dict__.setdefault("_proofs", {})[id(fam)] = proof
+        self._checks[id(fam)] = self._checks.get(id(rf))
+        if ver.n_violations == 0 and np.isfinite(ver.linf) and proof.proved:
+            return replace(res, rational=fam, verification=replace(ver, verified=True))
+        why = ("misses a segment in its stored form" if ver.n_violations
+               or not np.isfinite(ver.linf) else f"validity {proof.summary()}")
+        return replace(res, success=False, status=2, rational=fam,
+                       verification=replace(ver, verified=False),
+                       message=f"{res.message}; rejected: {why}")
 
     @property
     def _extra(self) -> list[Array]:
@@ -592,7 +637,8 @@ class BRDFFitter(RationalFitter):
         cache = getattr(self, "_conf_cache", None)
         if cache is None or cache[0] != key:
             cache = self._conf_cache = (key, configurations(
-                self.parametrization, domain, keep=getattr(self, "_keep", None)))
+                self.parametrization, domain, keep=getattr(self, "_keep", None),
+                box_points=BOX_POINTS))
         return cache[1]
 
     def _polish_rounds(self, rf: RationalFunction, seg: Segments, j: int,
@@ -723,7 +769,7 @@ class BRDFFitter(RationalFitter):
     def _verify(self, rf: RationalFunction, seg: Segments, j: int) -> Verification:
         """Segments at every sample, then q > 0 and r >= 0 on a dense, adaptive set
         of valid direction pairs (:func:`ratfit.brdf.validity.check_validity`)."""
-        from ratfit.brdf.validity import check_validity
+        from ratfit.brdf.validity import check_validity, prove_validity
 
         known = find_parametrization(self.parametrization) is not None
         # n-D with a known parametrization: the valid direction pairs are checked
@@ -734,9 +780,17 @@ class BRDFFitter(RationalFitter):
             return ver
         if rf.space.dim == 1 and ver.poles_in_domain:
             return ver
-        chk = check_validity(rf, self.parametrization, keep=getattr(self, "_keep", None))
+        keep = getattr(self, "_keep", None)
+        chk = check_validity(rf, self.parametrization, keep=keep)
         if chk is None:  # nothing says what is valid: the plain box check decides
             return ver if box_checked else verify(rf, seg, channel=j)
+        if chk.valid:
+            # the dense check found nothing: now the proof, on the whole evaluated region
+            proof = prove_validity(rf, self.parametrization, keep=keep)
+            self.__dict__.setdefault("_proofs", {})[id(rf)] = proof
+            if not proof.proved:
+                chk = replace(chk, valid=False, bad_points=proof.bad_points,
+                              method=f"{chk.method}; {proof.summary()}")
         if not hasattr(self, "_checks"):
             self._checks = {}
         self._checks[id(rf)] = chk
@@ -800,31 +854,11 @@ def _valid_rows(base: ArnoldiSystem, t_grid: Array, numerator: bool = True) -> A
 
 
 def valid_grid(param: str, domain: ArrayLike, points: int = 200_000) -> Array | None:
-    """Grid points of the box ``domain`` that are valid configurations of ``param``.
+    """Grid points of the box ``domain`` that are valid configurations of ``param``
+    (:func:`ratfit.brdf.validity.box_configurations`); None for an unknown one."""
+    from ratfit.brdf.validity import box_configurations
 
-    None when the parametrization is unknown (then the whole box counts).
-    """
-    p = find_parametrization(param)
-    if p is None:
-        return None
-    dom = np.asarray(domain, dtype=float)
-    per = max(3, int(points ** (1.0 / p.dim)))
-    axes = [np.linspace(lo, hi, per) for lo, hi in dom]
-    g = np.stack([a.ravel() for a in np.meshgrid(*axes, indexing="ij")], axis=1)
-    with np.errstate(all="ignore"):
-        try:
-            L, V = p._to(g)
-        except InputError:
-            return None
-        ok = np.isfinite(L).all(axis=1) & np.isfinite(V).all(axis=1)
-        ok &= (L[:, 2] >= 0) & (V[:, 2] >= 0)
-        back = np.full_like(g, np.nan)
-        if ok.any():
-            back[ok] = p._from(L[ok], V[ok])
-    d = np.abs(back - g)
-    d = np.minimum(d, np.abs(d - 2 * np.pi))  # angles that wrap
-    ok &= np.all(d <= 1e-7 * (1.0 + np.abs(g)), axis=1)
-    return g[ok]
+    return box_configurations(param, domain, points)
 
 
 def save_brdf_fit(path: str | os.PathLike[str], results, brdf_meta: dict[str, Any],
@@ -888,16 +922,20 @@ class BRDFFit:
         return tuple(c.name for c in self.saved.channels)
 
     def _raw(self, coords: Array) -> Array:
+        """The fit at coordinates (folded for MERL tables), clipped into its domain box:
+        outside the box nothing is proved, so no evaluator goes there."""
         c = coords
         if self.fold_phi_d:
             c = c.copy()
             c[:, 2] = np.mod(c[:, 2], np.pi)
         if self.dropped:
             c = np.delete(c, list(self.dropped), axis=1)
-        return self.saved(c)
+        dom = np.asarray(self.saved.space.domain, dtype=float)
+        return self.saved(np.clip(c, dom[:, 0], dom[:, 1]))
 
     def eval_coords(self, coords: ArrayLike) -> Array:
-        """BRDF values (N, k) at coordinates of the fit's parametrization."""
+        """BRDF values (N, k) at coordinates of the fit's parametrization (clipped into
+        the fit's domain box; :meth:`eval_dirs` first moves a pair in by symmetries)."""
         p = get_parametrization(self.parametrization)
         c = np.asarray(coords, dtype=float)
         if c.ndim == 1:
@@ -912,10 +950,50 @@ class BRDFFit:
                 vals = vals / cos_theta_l(c, p.name)[:, None]
         return vals
 
-    def eval_dirs(self, L: ArrayLike, V: ArrayLike) -> Array:
-        """BRDF values (N, k) for unit directions L, V (N, 3) above the horizon."""
+    def coords(self, L: ArrayLike, V: ArrayLike) -> tuple[Array, NDArray[np.bool_]]:
+        """Where the fit is evaluated for unit directions L, V (N, 3) above the horizon.
+
+        The one definition every evaluator shares (``brdf eval``, the exports, the
+        renderer): of the pair and its images under the symmetries of a BRDF
+        (reciprocity L <-> V; for all but full parametrizations also the mirror
+        y -> -y, which isotropy allows), the first one whose coordinates are nearest
+        to the fit's domain box, clipped into the box. The validity proof
+        (:func:`ratfit.brdf.validity.prove_validity`) covers exactly these points.
+        Also returns which rows needed the clip.
+        """
         p = get_parametrization(self.parametrization)
-        coords = p.from_dirs(L, V)
+        dom = np.asarray(self.saved.space.domain, dtype=float)
+        la, va = check_dirs(L, V)
+        cols = np.setdiff1d(np.arange(p.dim), self.dropped)
+        flip = np.array([1.0, -1.0, 1.0])
+        cands = [(la, va), (va, la)]
+        if p.invariant != "full":
+            cands += [(la * flip, va * flip), (va * flip, la * flip)]
+        best = dist = None
+        with np.errstate(all="ignore"):
+            for a, b in cands:
+                c = p._from(a, b)
+                if self.fold_phi_d:
+                    c[:, 2] = np.mod(c[:, 2], np.pi)
+                cu = c[:, cols]
+                gap = np.sum(np.maximum(dom[:, 0] - cu, 0.0) + np.maximum(cu - dom[:, 1], 0.0),
+                             axis=1)
+                gap = np.where(np.isfinite(gap), gap, np.inf)
+                if best is None or dist is None:
+                    best, dist = c, gap
+                    continue
+                better = gap < dist - 1e-12 * (1.0 + np.abs(dom).max())
+                best[better], dist[better] = c[better], gap[better]
+        assert best is not None and dist is not None
+        tol = 1e-9 * (1.0 + np.abs(dom).max())
+        out = best.copy()
+        out[:, cols] = np.clip(best[:, cols], dom[:, 0], dom[:, 1])
+        return out, dist > tol
+
+    def eval_dirs(self, L: ArrayLike, V: ArrayLike) -> Array:
+        """BRDF values (N, k) for unit directions L, V (N, 3) above the horizon,
+        at the coordinates :meth:`coords` defines."""
+        coords, _ = self.coords(L, V)
         vals = self._raw(coords)
         if self.cosine_weighted:
             lz = np.asarray(L, dtype=float).reshape(-1, 3)[:, 2]

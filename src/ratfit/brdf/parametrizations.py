@@ -267,6 +267,21 @@ def _r3_to(c: Array) -> tuple[Array, Array]:
     return _from_half_diff(c[:, 0], np.zeros(len(c)), c[:, 1], c[:, 2])
 
 
+def _sym_from(L: Array, V: Array) -> Array:
+    th, _, td, pd = _rusin(L, V)
+    return _stack(th, td, np.sin(th) ** 2 * np.cos(2.0 * pd))
+
+
+def _sym_to(c: Array) -> tuple[Array, Array]:
+    s2 = np.sin(c[:, 0]) ** 2
+    with np.errstate(divide="ignore", invalid="ignore"):
+        c2 = np.where(s2 > 0, c[:, 2] / np.where(s2 > 0, s2, 1.0), 0.0)
+    bad = np.abs(c2) > 1.0 + 1e-12
+    pd = 0.5 * np.arccos(np.clip(c2, -1.0, 1.0))
+    L, V = _from_half_diff(c[:, 0], np.zeros(len(c)), c[:, 1], pd)
+    return _nan_rows(bad, L, V)
+
+
 def _c3_from(L: Array, V: Array) -> Array:
     th, _, td, pd = _rusin(L, V)
     return _stack(np.cos(th), np.cos(td), pd)
@@ -448,6 +463,13 @@ _ALL = (
     _p("RUSIN_TH_TD_PD", ("theta_h", "theta_d", "phi_d"), "isotropic",
        ((0, _HALF), (0, _HALF), (-_PI, _PI)), _r3_from, _r3_to,
        "Isotropic Rusinkiewicz angles (MERL's table axes); canonical phi_h = 0."),
+    _p("RUSIN_TH_TD_SYM", ("theta_h", "theta_d", "sin2_theta_h_cos_2phi_d"), "isotropic",
+       ((0, _HALF), (0, _HALF), (-1, 1)), _sym_from, _sym_to,
+       "Rusinkiewicz angles with the symmetries of an isotropic, reciprocal BRDF built in "
+       "(ratfit's own name): theta_h, theta_d and sin^2(theta_h) cos(2 phi_d). Any function "
+       "of these is reciprocal (phi_d -> phi_d + pi), mirror-symmetric (phi_d -> -phi_d) "
+       "and independent of phi_d at the mirror direction theta_h = 0; canonical phi_d in "
+       "[0, pi/2]."),
     _p("COS_TH_TD_PD", ("cos_theta_h", "cos_theta_d", "phi_d"), "isotropic",
        ((0, 1), (0, 1), (-_PI, _PI)), _c3_from, _c3_to,
        "Cosine variant of RUSIN_TH_TD_PD (ratfit's own name; ALTA has only COS_TH_TD)."),

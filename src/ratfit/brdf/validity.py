@@ -24,15 +24,27 @@ Two uses:
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from ratfit.brdf.parametrizations import Parametrization, find_parametrization
+from ratfit.core.bases import PolynomialSpace
+from ratfit.core.positivity import SignProof
 from ratfit.core.rational import RationalFunction
+from ratfit.errors import InputError
 
-__all__ = ["ValidityCheck", "angle_grid", "check_validity", "configurations"]
+__all__ = [
+    "ValidityCheck",
+    "ValidityProof",
+    "angle_grid",
+    "box_configurations",
+    "check_validity",
+    "configurations",
+    "prove_validity",
+]
 
 Array = NDArray[np.float64]
 _HALF = 0.5 * np.pi
@@ -88,9 +100,14 @@ def angle_grid(k: int, points: int, offset: bool = False) -> Array:
 
 
 def configurations(param: str, domain: ArrayLike, points: int = 60_000,
-                   offset: bool = False, keep: ArrayLike | None = None) -> Array | None:
+                   offset: bool = False, keep: ArrayLike | None = None,
+                   box_points: int = 0) -> Array | None:
     """Coordinates of direction pairs above the horizon that fall inside ``domain``.
 
+    ``box_points``: also that many points of a grid of the coordinate box itself that
+    are valid configurations (:func:`box_configurations`), faces included; the angle
+    grid alone leaves bands such as theta_h near 0 (the mirror direction) almost
+    empty, and the validity proof covers them too.
     None when the parametrization is unknown (then nothing says what is valid).
     """
     p = find_parametrization(param)
@@ -101,8 +118,40 @@ def configurations(param: str, domain: ArrayLike, points: int = 60_000,
     if dom.shape[0] != cols.size:
         return None
     c = _coords(p, angle_grid(_n_angles(p), points, offset))[:, cols]
-    c = c[_inside(c, dom)]
-    return np.clip(c, dom[:, 0], dom[:, 1])
+    c = np.clip(c[_inside(c, dom)], dom[:, 0], dom[:, 1])
+    if box_points and keep is None:
+        box = box_configurations(param, dom, box_points)
+        if box is not None and len(box):
+            c = np.concatenate([c, box])
+    return c
+
+
+def box_configurations(param: str, domain: ArrayLike, points: int = 200_000) -> Array | None:
+    """Grid points of the box ``domain`` (ends included) that are valid configurations
+    of ``param``: directions above the horizon that convert back to the same
+    coordinates. None when the parametrization is unknown (then the whole box counts).
+    """
+    p = find_parametrization(param)
+    if p is None:
+        return None
+    dom = np.asarray(domain, dtype=float)
+    per = max(3, int(points ** (1.0 / p.dim)))
+    axes = [np.linspace(lo, hi, per) for lo, hi in dom]
+    g = np.stack([a.ravel() for a in np.meshgrid(*axes, indexing="ij")], axis=1)
+    with np.errstate(all="ignore"):
+        try:
+            L, V = p._to(g)
+        except InputError:
+            return None
+        ok = np.isfinite(L).all(axis=1) & np.isfinite(V).all(axis=1)
+        ok &= (L[:, 2] >= 0) & (V[:, 2] >= 0)
+        back = np.full_like(g, np.nan)
+        if ok.any():
+            back[ok] = p._from(L[ok], V[ok])
+    d = np.abs(back - g)
+    d = np.minimum(d, np.abs(d - 2 * np.pi))  # angles that wrap
+    ok &= np.all(d <= 1e-7 * (1.0 + np.abs(g)), axis=1)
+    return g[ok]
 
 
 @dataclass(frozen=True)
@@ -236,3 +285,136 @@ def _compass(rf: RationalFunction, p: Parametrization, dom: Array, a0: Array, v0
         if scale.max() < 1e-4:
             break
     return evals, (np.concatenate(bad) if bad else np.zeros((0, dom.shape[0])))
+
+
+# --------------------------------------------------------------------------- proof
+@dataclass(frozen=True)
+class ValidityProof:
+    """The proof that a BRDF fit has no pole and no negative value where it is evaluated.
+
+    The fit is evaluated at its coordinates clamped to its domain box
+    (:meth:`ratfit.brdf.fitter.BRDFFit.eval_coords`), so the region is the box, less the
+    pieces that provably hold the clamped coordinates of no pair of directions above the
+    horizon (Rusinkiewicz angles; every other parametrization keeps the whole box).
+    q > 0 and p >= 0 there are proved by Bernstein bounds with subdivision
+    (:func:`ratfit.core.positivity.prove_positive`) on the fit's own coefficients.
+    """
+
+    proved: bool
+    q: SignProof
+    p: SignProof
+    region: str
+    bad_points: Array  # coordinates to constrain where the proof failed
+
+    def summary(self) -> str:
+        state = "proved" if self.proved else "NOT PROVED"
+        return (f"{state}: q > 0 {self.q.summary()}; p >= 0 {self.p.summary()}; "
+                f"region: {self.region}")
+
+    def to_dict(self) -> dict[str, object]:
+        return {"proved": self.proved, "method": self.q.method, "region": self.region,
+                "q_margin": self.q.margin, "p_margin": self.p.margin,
+                "boxes": self.q.boxes + self.p.boxes}
+
+
+def _rusin_excluder(space: PolynomialSpace) -> Callable[[Array, Array], NDArray[np.bool_]]:
+    """Pieces (window corners) of a RUSIN_TH_TD_PD box that no clamped valid pair reaches.
+
+    L.z = cos th cos td - sin th sin td cos pd and V.z = cos th cos td + sin th sin td cos pd,
+    so a pair is above the horizon iff g = cos th cos td - sin th sin td |cos pd| >= 0; g
+    falls with th, td (in [0, pi/2]) and |cos pd|. A piece touching the box's lower th (td)
+    face also holds the clipped images of pairs with smaller th (td): there th (td) = 0
+    counts (:meth:`ratfit.brdf.fitter.BRDFFit.coords` moves a pair into the box by its
+    symmetries, which keep th, td and |cos pd|, then clips). The piece is dropped when
+    g < 0 even at its most favourable corner.
+    """
+    def exclude(lo: Array, hi: Array) -> NDArray[np.bool_]:
+        a, b = space.from_window(lo), space.from_window(hi)
+        th = np.where(lo[:, 0] <= -1.0, 0.0, a[:, 0])
+        td = np.where(lo[:, 1] <= -1.0, 0.0, a[:, 1])
+        th, td = np.clip(th, 0.0, _HALF), np.clip(td, 0.0, _HALF)
+        # the symmetries that move a pair into the box keep |cos pd|; a piece on a pd face
+        # also holds the clipped images of pd beyond it, down to 0 or up to pi
+        p0 = np.where(lo[:, 2] <= -1.0, np.minimum(a[:, 2], 0.0), a[:, 2])
+        p1 = np.where(hi[:, 2] >= 1.0, np.maximum(b[:, 2], np.pi), b[:, 2])
+        # min |cos| over [p0, p1]: 0 where an odd multiple of pi/2 lies inside
+        k0 = np.ceil((p0 - _HALF) / np.pi)
+        k1 = np.floor((p1 - _HALF) / np.pi)
+        crosses = k0 <= k1
+        mincos = np.where(crosses, 0.0, np.minimum(np.abs(np.cos(p0)), np.abs(np.cos(p1))))
+        g = np.cos(th) * np.cos(td) - np.sin(th) * np.sin(td) * mincos
+        return g < -1e-9  # the margin covers the rounding of these few operations
+
+    return exclude
+
+
+def _sym_excluder(space: PolynomialSpace) -> Callable[[Array, Array], NDArray[np.bool_]]:
+    """Pieces of a RUSIN_TH_TD_SYM box (theta_h, theta_d, s = sin^2 theta_h cos 2 phi_d)
+    that no clipped valid pair reaches: either |s| > sin^2 theta_h everywhere on the piece
+    (coordinates of no pair), or the pair is below the horizon everywhere (as for
+    :func:`_rusin_excluder`, with |cos phi_d| = sqrt((1 + s / sin^2 theta_h) / 2) at its
+    smallest). A piece on a face also holds the clipped images of the pairs beyond it: its
+    range extends there to the end of that coordinate's natural range."""
+
+    def exclude(lo: Array, hi: Array) -> NDArray[np.bool_]:
+        a, b = space.from_window(lo), space.from_window(hi)
+        low_face, high_face = lo <= -1.0, hi >= 1.0
+        th0 = np.clip(np.where(low_face[:, 0], 0.0, a[:, 0]), 0.0, _HALF)
+        th1 = np.clip(np.where(high_face[:, 0], _HALF, b[:, 0]), 0.0, _HALF)
+        td0 = np.clip(np.where(low_face[:, 1], 0.0, a[:, 1]), 0.0, _HALF)
+        s0 = np.where(low_face[:, 2], -1.0, a[:, 2])
+        s1 = np.where(high_face[:, 2], 1.0, b[:, 2])
+        min_abs_s = np.where((s0 <= 0) & (s1 >= 0), 0.0, np.minimum(np.abs(s0), np.abs(s1)))
+        sin0, sin1 = np.sin(th0) ** 2, np.sin(th1) ** 2
+        no_pair = min_abs_s > sin1 * (1 + 1e-9) + 1e-15
+        with np.errstate(divide="ignore", invalid="ignore"):
+            c2 = np.where(s0 >= 0, s0 / np.where(sin1 > 0, sin1, 1.0),
+                          np.where(sin0 > 0, s0 / np.where(sin0 > 0, sin0, 1.0), -1.0))
+        c2 = np.where((s0 >= 0) & (sin1 <= 0), -1.0, np.clip(c2, -1.0, 1.0))
+        mincos = np.sqrt(0.5 * (1.0 + c2))
+        g = np.cos(th0) * np.cos(td0) - np.sin(th0) * np.sin(td0) * mincos
+        return no_pair | (g < -1e-9)
+
+    return exclude
+
+
+def _stark_excluder(space: PolynomialSpace) -> Callable[[Array, Array], NDArray[np.bool_]]:
+    """Pieces of a STARK_2D box (hp, b) that no clipped valid pair reaches: valid pairs
+    have hp^2 + b^2 <= 1; a piece on a lower face also holds the images of smaller values
+    (0 counts there), while clipping down an upper face keeps a pair inside the disk."""
+
+    def exclude(lo: Array, hi: Array) -> NDArray[np.bool_]:
+        a = space.from_window(lo)
+        low = np.where(lo <= -1.0, 0.0, np.maximum(a, 0.0))
+        return np.sum(low**2, axis=1) > 1.0 + 1e-9
+
+    return exclude
+
+
+_EXCLUDERS = {"RUSIN_TH_TD_PD": _rusin_excluder, "RUSIN_TH_TD_SYM": _sym_excluder,
+              "STARK_2D": _stark_excluder}
+
+
+def prove_validity(rf: RationalFunction, param: str,
+                   keep: ArrayLike | None = None) -> ValidityProof:
+    """Prove q > 0 and p >= 0 of ``rf`` (in its family form) on the evaluated region."""
+    from ratfit.core.positivity import prove_positive
+
+    space = rf.space
+    fam = rf.to_family()
+    Q = space.tensor_coef(fam.q)
+    P = space.tensor_coef(fam.p)
+    sign = 1.0 if Q.flat[0] >= 0 else -1.0
+    p = find_parametrization(param)
+    whole = keep is None or np.array_equal(np.asarray(keep), np.arange(space.dim))
+    exclude = None
+    region = "the whole domain box"
+    if p is not None and p.name in _EXCLUDERS and whole and space.dim == p.dim:
+        exclude = _EXCLUDERS[p.name](space)
+        region = "the domain box less pieces no pair of directions reaches"
+    fam_name = space.family.name
+    qp = prove_positive(sign * Q, fam_name, strict=True, exclude=exclude)
+    pp = prove_positive(sign * P, fam_name, strict=False, exclude=exclude)
+    pts = [space.from_window(s.points) for s in (qp, pp) if len(s.points)]
+    bad = np.concatenate(pts) if pts else np.zeros((0, space.dim))
+    return ValidityProof(qp.proved and pp.proved, qp, pp, region, bad)

@@ -237,8 +237,14 @@ def prove_positive(coef: ArrayLike, family: str, *, strict: bool = True,
             return SignProof(True, proved_low, scale, False, np.zeros((0, d)), boxes, method)
         width = hi - lo
         if boxes >= max_boxes or float(np.max(width)) < min_width:
-            order = np.argsort(low)[:report]
-            pts = 0.5 * (lo[order] + hi[order])
+            # half the points at the lowest bounds, half spread over every unproved piece
+            # (they often line a whole surface, e.g. the edge of the evaluated region)
+            order = np.argsort(low)
+            pick = np.unique(np.concatenate([
+                order[: report // 2],
+                order[np.linspace(0, len(order) - 1, report - report // 2).astype(np.int64)],
+            ]))
+            pts = 0.5 * (lo[pick] + hi[pick])
             return SignProof(False, float(np.min(low)), scale, False, pts, boxes, method)
         if len(B) > cap:  # the lowest bounds first; the rest wait
             order = np.argsort(low)

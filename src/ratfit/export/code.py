@@ -469,6 +469,7 @@ _PARAM_CODE: dict[str, tuple[list[tuple[str, str]], list[str]]] = {
     "RUSIN_VH_VD": (_RUSIN, ["hx", "hy", "hz", "dx", "dy", "dz"]),
     "RUSIN_TH_TD_PD": (_RUSIN, ["th", "td", "pd"]),
     "COS_TH_TD_PD": (_RUSIN, ["rf_cos(th)", "rf_cos(td)", "pd"]),
+    "RUSIN_TH_TD_SYM": (_RUSIN, ["th", "td", "rf_sin(th) * rf_sin(th) * rf_cos(2.0 * pd)"]),
     "ISOTROPIC_TV_TL_DPHI": (_ISO, ["tv", "tl", "dphi"]),
     "ISOTROPIC_TL_TV_PROJ_DPHI": (_ISO, ["tl", "tv * rf_cos(dphi)", "tv * rf_sin(dphi)"]),
     "RETRO_TL_TVL_PROJ_DPHI": (_RETRO, ["tl", "tvl * rf_cos(phi)", "tvl * rf_sin(phi)"]),
@@ -547,7 +548,7 @@ def rf_fold(a):
 
 
 def _param_lines(lang: _Lang, pname: str, prefix: str, nch: int, cosine: bool,
-                 fold: bool) -> list[str]:
+                 fold: bool, domain: Array) -> list[str]:
     stmts, outs = _PARAM_CODE[pname]
     if fold and pname == "RUSIN_TH_TD_PD":
         outs = [outs[0], outs[1], "rf_fold(pd)"]
@@ -563,51 +564,110 @@ def _param_lines(lang: _Lang, pname: str, prefix: str, nch: int, cosine: bool,
                 "    vx, vy, vz = V[0] / vn, V[1] / vn, max(V[2] / vn, 0.0)"]
         out += [f"    {v} = {e}" for v, e in stmts]
         out.append(f"    return [{', '.join(outs)}]")
-        out += ["", "", f"def {prefix}_brdf(L, V):",
-                '    """BRDF values (one per channel) for unit directions L, V."""',
-                f"    vals = {prefix}_eval({prefix}_coords(L, V))"]
+        out += ["", ""]
+    else:
+        if lang.name == "c":
+            out += [f"/* Coordinates ({pname}) of directions L, V (local frame, normal +z). */",
+                    f"void {prefix}_coords(const double L[3], const double V[3], "
+                    f"double x[RATFIT_DIM])", "{"]
+        else:
+            out += [f"// Coordinates ({pname}) of directions L, V (local frame, normal +z).",
+                    f"void {prefix}_coords(vec3 L, vec3 V, out float x[RATFIT_DIM])", "{"]
+        out += [f"    {r} ln = sqrt(L[0] * L[0] + L[1] * L[1] + L[2] * L[2]);",
+                f"    {r} vn = sqrt(V[0] * V[0] + V[1] * V[1] + V[2] * V[2]);",
+                f"    {r} lx = L[0] / ln, ly = L[1] / ln, lz = rf_max(L[2] / ln, 0.0);",
+                f"    {r} vx = V[0] / vn, vy = V[1] / vn, vz = rf_max(V[2] / vn, 0.0);"]
+        out += [f"    {r} {v} = {e};" for v, e in stmts]
+        if stmts and lang.name == "c":  # not every intermediate is an output
+            out.append("    " + " ".join(f"(void){v};" for v, _ in stmts))
+        out += [f"    x[{i}] = {e};" for i, e in enumerate(outs)]
+        out += ["}", ""]
+    out += _brdf_lines(lang, pname, prefix, cosine, domain)
+    return out
+
+
+def _brdf_lines(lang: _Lang, pname: str, prefix: str, cosine: bool,
+                domain: Array) -> list[str]:
+    """The BRDF at directions L, V by the one definition of
+    :meth:`ratfit.brdf.fitter.BRDFFit.coords`: of the pair and its images under
+    reciprocity (and the mirror y -> -y for all but full parametrizations), the first
+    nearest to the domain box, clipped into it; the fit's validity proof covers those
+    points."""
+    from ratfit.brdf.parametrizations import get_parametrization
+
+    ncand = 2 if get_parametrization(pname).invariant == "full" else 4
+    lo = ", ".join(lang.lit(v) for v in domain[:, 0])
+    hi = ", ".join(lang.lit(v) for v in domain[:, 1])
+    tol = lang.lit(1e-12 * (1.0 + float(np.abs(domain).max())))
+    doc = "BRDF values (one per channel) for unit directions L, V above the horizon."
+    if lang.name == "python":
+        out = [f"def {prefix}_brdf(L, V):", f'    """{doc}"""',
+               f"    lo = ({lo},)", f"    hi = ({hi},)",
+               "    lf, vf = (L[0], -L[1], L[2]), (V[0], -V[1], V[2])",
+               "    best, gap = None, math.inf",
+               f"    for a, b in ((L, V), (V, L), (lf, vf), (vf, lf))[:{ncand}]:",
+               f"        x = {prefix}_coords(a, b)",
+               "        g = 0.0",
+               "        for i in range(RATFIT_DIM):",
+               "            g += max(lo[i] - x[i], 0.0) + max(x[i] - hi[i], 0.0)",
+               "            if x[i] != x[i]:",
+               "                g = math.inf",
+               f"        if best is None or g < gap - {tol}:",
+               "            best, gap = x, g",
+               "    x = [min(max(best[i], lo[i]), hi[i]) for i in range(RATFIT_DIM)]",
+               f"    vals = {prefix}_eval(x)"]
         if cosine:
             out += ["    lz = L[2] / math.sqrt(L[0] * L[0] + L[1] * L[1] + L[2] * L[2])",
                     "    vals = [v / lz for v in vals]"]
-        out.append("    return vals")
-        return out
-    if lang.name == "c":
-        out += [f"/* Coordinates ({pname}) of directions L, V (local frame, normal +z). */",
-                f"void {prefix}_coords(const double L[3], const double V[3], "
-                f"double x[RATFIT_DIM])", "{"]
+        return out + ["    return vals"]
+    c = lang.name == "c"
+    r = lang.real
+    big = "1e300" if c else "3.0e38"
+    out = [f"/* {doc} */" if c else f"// {doc}",
+           (f"void {prefix}_brdf(const double L[3], const double V[3], "
+            "double out[RATFIT_NCHANNELS])") if c else
+           f"void {prefix}_brdf(vec3 L, vec3 V, out float res[RATFIT_NCHANNELS])", "{"]
+    if c:
+        out += [f"    static const double lo[RATFIT_DIM] = {{{lo}}};",
+                f"    static const double hi[RATFIT_DIM] = {{{hi}}};",
+                "    double best[RATFIT_DIM], x[RATFIT_DIM], a[3], b[3], gap = 1e300;"]
     else:
-        out += [f"// Coordinates ({pname}) of directions L, V (local frame, normal +z).",
-                f"void {prefix}_coords(vec3 L, vec3 V, out float x[RATFIT_DIM])", "{"]
-    out += [f"    {r} ln = sqrt(L[0] * L[0] + L[1] * L[1] + L[2] * L[2]);",
-            f"    {r} vn = sqrt(V[0] * V[0] + V[1] * V[1] + V[2] * V[2]);",
-            f"    {r} lx = L[0] / ln, ly = L[1] / ln, lz = rf_max(L[2] / ln, 0.0);",
-            f"    {r} vx = V[0] / vn, vy = V[1] / vn, vz = rf_max(V[2] / vn, 0.0);"]
-    out += [f"    {r} {v} = {e};" for v, e in stmts]
-    if stmts and lang.name == "c":  # not every intermediate is an output
-        out.append("    " + " ".join(f"(void){v};" for v, _ in stmts))
-    out += [f"    x[{i}] = {e};" for i, e in enumerate(outs)]
-    out.append("}")
-    out.append("")
-    if lang.name == "c":
-        out += ["/* BRDF values (one per channel) for directions L, V. */",
-                f"void {prefix}_brdf(const double L[3], const double V[3], "
-                f"double out[RATFIT_NCHANNELS])", "{",
-                "    double x[RATFIT_DIM];", f"    {prefix}_coords(L, V, x);",
-                f"    {prefix}_eval(x, out);"]
-        if cosine:
+        out += [f"    float lo[RATFIT_DIM] = float[RATFIT_DIM]({lo});",
+                f"    float hi[RATFIT_DIM] = float[RATFIT_DIM]({hi});",
+                "    float best[RATFIT_DIM]; float x[RATFIT_DIM]; vec3 a; vec3 b;",
+                f"    float gap = {big};"]
+    nan = "x[i] != x[i]" if c else "isnan(x[i])"
+    out += [f"    for (int k = 0; k < {ncand}; ++k) {{",
+            f"        {r} s = k >= 2 ? -1.0 : 1.0;",
+            "        for (int i = 0; i < 3; ++i) {",
+            "            a[i] = (k % 2 == 0) ? L[i] : V[i];",
+            "            b[i] = (k % 2 == 0) ? V[i] : L[i];",
+            "        }",
+            "        a[1] *= s;", "        b[1] *= s;",
+            f"        {prefix}_coords(a, b, x);",
+            f"        {r} g = 0.0;",
+            "        for (int i = 0; i < RATFIT_DIM; ++i) {",
+            f"            {r} below = lo[i] - x[i], above = x[i] - hi[i];",
+            "            g += (below > 0.0 ? below : 0.0) + (above > 0.0 ? above : 0.0);",
+            f"            if ({nan}) g = {big};",
+            "        }",
+            f"        if (k == 0 || g < gap - {tol}) {{",
+            "            gap = g;",
+            "            for (int i = 0; i < RATFIT_DIM; ++i) best[i] = x[i];",
+            "        }",
+            "    }",
+            "    for (int i = 0; i < RATFIT_DIM; ++i)",
+            "        best[i] = best[i] < lo[i] ? lo[i] : (best[i] > hi[i] ? hi[i] : best[i]);"]
+    dst = "out" if c else "res"
+    out.append(f"    {prefix}_eval(best, {dst});")
+    if cosine:
+        if c:
             out += ["    double lz = L[2] / sqrt(L[0] * L[0] + L[1] * L[1] + L[2] * L[2]);",
                     "    for (int j = 0; j < RATFIT_NCHANNELS; ++j) out[j] /= lz;"]
-        out.append("}")
-    else:
-        out += ["// BRDF values (one per channel) for directions L, V.",
-                f"void {prefix}_brdf(vec3 L, vec3 V, out float res[RATFIT_NCHANNELS])", "{",
-                "    float x[RATFIT_DIM];", f"    {prefix}_coords(L, V, x);",
-                f"    {prefix}_eval(x, res);"]
-        if cosine:
+        else:
             out += ["    float lz = normalize(L).z;",
                     "    for (int j = 0; j < RATFIT_NCHANNELS; ++j) res[j] /= lz;"]
-        out.append("}")
-    return out
+    return out + ["}"]
 
 
 # ---------------------------------------------------------------------------- assembly
@@ -725,7 +785,8 @@ def export_source(
     lines += ["    return out"] if py else ["}"]
     if pname:
         lines += ["", ""] if py else [""]
-        lines += _param_lines(lg, pname, prefix, k, cosine_weighted, fold_phi_d)
+        lines += _param_lines(lg, pname, prefix, k, cosine_weighted, fold_phi_d,
+                              np.asarray(saved.space.domain, dtype=float))
     del r
     text = "\n".join(lines).rstrip() + "\n"
     return ExportResult(text, lang_key, forms, pname)

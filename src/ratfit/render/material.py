@@ -73,36 +73,9 @@ class FitMaterial:
         self.outside_fraction = float(self.coords(L, V)[1].mean())
 
     def coords(self, L: ArrayLike, V: ArrayLike) -> tuple[Array, NDArray[np.bool_]]:
-        """Fit coordinates of (L, V), moved into the fit's domain box by the symmetries of
-        a BRDF (reciprocity L <-> V; for non-full parametrizations also the mirror
-        y -> -y, which isotropy allows), then clipped to the box: a fit is not evaluated
-        outside the box it was fitted on. Also returns which rows needed the clip."""
-        from ratfit.brdf.parametrizations import get_parametrization
-
-        p = get_parametrization(self.fit.parametrization)
-        dom = np.asarray(self.fit.saved.space.domain, dtype=float)
-        Lu, Vu = unit_rows(L), unit_rows(V)
-        tol = 1e-9 * (1.0 + np.abs(dom).max())
-
-        def inside(c: Array) -> NDArray[np.bool_]:
-            return np.all((c >= dom[:, 0] - tol) & (c <= dom[:, 1] + tol), axis=1)
-
-        flip = np.array([1.0, -1.0, 1.0])
-        cands = [(Lu, Vu), (Vu, Lu)]
-        if p.invariant != "full":
-            cands += [(Lu * flip, Vu * flip), (Vu * flip, Lu * flip)]
-        with np.errstate(all="ignore"):
-            best = p.from_dirs(*cands[0])
-            ok = inside(best)
-            for a, b in cands[1:]:
-                if ok.all():
-                    break
-                c = p.from_dirs(a[~ok], b[~ok])
-                good = inside(c)
-                rows = np.flatnonzero(~ok)[good]
-                best[rows] = c[good]
-                ok[rows] = True
-        return np.clip(best, dom[:, 0], dom[:, 1]), ~ok
+        """The fit's coordinates of (L, V): :meth:`ratfit.brdf.fitter.BRDFFit.coords`,
+        the definition every evaluator shares. Also returns which rows needed a clip."""
+        return self.fit.coords(unit_rows(L), unit_rows(V))
 
     def raw(self, L: ArrayLike, V: ArrayLike) -> Array:
         """The fit's own values (N, 3), negative or non-finite ones included."""
