@@ -394,7 +394,7 @@ def test_positive_q_rows_and_fit() -> None:
     fitter = BRDFFitter(max_total=30)
     fitter.parametrization, fitter.positive_q = "STARK_2D", True
     seg = Segments.from_relative(x, y[:, 0], 0.05)
-    system = fitter._split_system(fitter._validate(seg), seg, 0, 4, 4)
+    system = fitter._split_system(fitter.prepare(seg), seg, 0, 4, 4)
     assert system is not None and system.n_rows > 2 * seg.n_points
     c = rng.normal(size=8)
     assert np.allclose(system.rows(4, 4) @ c, system.residuals(4, 4, c), atol=1e-12)

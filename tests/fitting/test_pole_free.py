@@ -110,10 +110,11 @@ def test_pole_free_in_2d_on_the_domain_box():
         assert res.history[-1]["pole_cuts"] > 0
         assert_pole_free_fit(res, seg)
         plain = RationalFitter(n=7, m=11, formulation=formulation)
-        space = plain._validate(seg)
-        parts = plain._search_parts(space, seg)
-        run = SearchEngine(plain, space, seg, 0,
-                           SearchParts(parts.systems, parts.verifier, pole_free=False))
+        space = plain.prepare(seg)
+        parts = plain.search_parts(space, seg)
+        run = SearchEngine(plain.options_,
+                           SearchParts(parts.systems, parts.verifier, pole_free=False),
+                           space, seg, 0)
         run.fixed(7, 11)
         ver = run.cache[(7, 11)][2]
         assert ver is not None and ver.denominator_sign_changes  # without the q rows

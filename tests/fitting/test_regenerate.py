@@ -18,8 +18,8 @@ class _FirstCandidateRejected(RationalFitter):
 
     regenerate = 2
 
-    def _search_parts(self, space, seg):
-        parts = super()._search_parts(space, seg)
+    def search_parts(self, space, seg):
+        parts = super().search_parts(space, seg)
         if not hasattr(self, "calls"):  # fit() asks for the parts again at the end
             self.calls: Counter = Counter()
             self.points = 0

@@ -52,7 +52,7 @@ def test_common_denominator_is_found_once() -> None:
 def test_system_rows_match_residuals_and_sk_guess() -> None:
     x, y = _runge_channels(80)
     seg = Segments.from_relative(x, y, 1e-2)
-    space = RationalFitter()._validate(seg)
+    space = RationalFitter().prepare(seg)
     q0 = shared_sk_denominator(space, seg, (1, 2, 3), 3)
     assert q0 is not None
     q = 1 + 25 * x**2

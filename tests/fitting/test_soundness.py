@@ -97,7 +97,7 @@ def test_other_cross_checks_keep_the_tiny_width_fit(exact33: Segments, cross_che
 
 
 def test_no_certificate_claims_a_feasible_size(exact33: Segments) -> None:
-    space = RationalFitter()._validate(exact33)
+    space = RationalFitter().prepare(exact33)
     for form in ("arnoldi", "basis"):
         cert = certify(space, exact33, 0, 3, 3, formulation=form)
         assert not cert.checked
@@ -106,7 +106,7 @@ def test_no_certificate_claims_a_feasible_size(exact33: Segments) -> None:
 
 def test_smaller_totals_are_proved_infeasible_exactly(exact33: Segments) -> None:
     """Total 5 is impossible; the proof is re-checked here in exact arithmetic."""
-    space = RationalFitter()._validate(exact33)
+    space = RationalFitter().prepare(exact33)
     for n, m in ((2, 3), (3, 2)):
         cert = certify(space, exact33, 0, n, m, formulation="basis")
         assert cert.checked and cert.exact

@@ -105,7 +105,7 @@ class BatchInterrupted(KeyboardInterrupt):
 # ---------------------------------------------------------------------------- settings
 # Every setting with its built-in default: the fitter's options from the one spec
 # (ratfit.core.options), the segment widths, and how an input is read. All but
-# ``jobs`` enter the settings id (``jobs`` changes how fast, not what). ``jobs``
+# ``jobs`` and ``warm_start`` enter the settings id (they change how fast, not what). ``jobs``
 # defaults to 1: Dask supplies the parallelism, threads inside each task would
 # only oversubscribe the cores.
 FIT_PARAMS = tuple(k for k in FIT_OPTIONS if k != "callback")
@@ -114,7 +114,7 @@ DEFAULTS: dict[str, Any] = {
     **{k: o.default for k, o in SEGMENT_OPTIONS.items()},
     "format": None, "dim": None, "monomial": True,
 }
-_NOT_HASHED = ("jobs",)
+_NOT_HASHED = ("jobs", "warm_start")
 # Settings added after manifests were in use: left out of the settings id while they
 # hold their default, so results of earlier runs keep their ids (and are resumed).
 _HASHED_IF_SET = ("formulation", "time_limit")
