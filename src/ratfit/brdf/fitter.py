@@ -174,9 +174,14 @@ def resolve_widths(ds: Dataset, dt: float | None, abs_width: float | None,
     parametrization's :func:`default_floor_rel` (``defaulted`` True)."""
     if dt is None and abs_width is None and floor_rel is None and (
             ds.lo is None or ds.hi is None):
-        y = prepare_values(ds, cosine=cosine, clamp=clamp)
-        floor = default_floor_rel(str(ds.meta.get("param_in", "UNKNOWN")))
-        return default_dt(ds.x, y, floor), None, floor, True
+        # resolved once per dataset and weighting: kept in its meta (a KD-tree pass)
+        key = f"default_widths(cosine={bool(cosine)}, clamp={clamp!r})"
+        if key not in ds.meta:
+            y = prepare_values(ds, cosine=cosine, clamp=clamp)
+            floor = default_floor_rel(str(ds.meta.get("param_in", "UNKNOWN")))
+            ds.meta[key] = (default_dt(ds.x, y, floor), floor)
+        dt_default, floor = ds.meta[key]
+        return dt_default, None, floor, True
     return dt, abs_width, floor_rel, False
 
 

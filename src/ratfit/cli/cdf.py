@@ -22,7 +22,6 @@ import numpy as np
 
 from ratfit.cli.main import (
     EXIT_NO_FIT,
-    _fit_json,
     _progress,
     _write_json,
     demo_group,
@@ -31,6 +30,7 @@ from ratfit.cli.main import (
 )
 from ratfit.cli.options import aliased_option, fit_options, pop_fit_params
 from ratfit.errors import FileFormatError, InputError, RatfitError
+from ratfit.jobs.common import results_summary
 
 SOURCES = ("pdf", "cdf", "samples")
 
@@ -104,7 +104,7 @@ def _with_source(exc: RatfitError, path: Path) -> RatfitError:
 def cdf_json(fitter, output: Path | None) -> dict[str, Any]:
     """`ratfit fit --json` keys plus ``monotone`` (the CDF checks and constraint setup)."""
     res = fitter.result_
-    doc = _fit_json(fitter.results_, output)
+    doc = results_summary(fitter.results_, output)
     ver = res.verification
     mono: dict[str, Any] = ver.monotone_summary() if hasattr(ver, "monotone_summary") else {
         "verified": False}

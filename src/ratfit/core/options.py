@@ -279,8 +279,15 @@ class FitOptions:
     spec that extends :data:`FIT_OPTIONS` (:func:`extend_spec`) and adds its rules
     in :meth:`_check_together`.
 
+    Parameters
+    ----------
+    basis, index_set, domain, n, m, total, min_total, max_total, strategy, split_rule, \
+solver, cross_check, active_set, jobs, callback, formulation, time_limit, variable, warm_start
+        As for :class:`~ratfit.fitting.search.RationalFitter` (:data:`FIT_OPTIONS`).
+
     Examples
     --------
+    >>> from ratfit.core.options import FitOptions
     >>> FitOptions(basis="chebyshev", time_limit=5).time_limit
     5.0
     >>> FitOptions(n=3)

@@ -54,7 +54,7 @@ import time
 from collections.abc import Callable, Iterable
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
-from typing import ClassVar, Protocol
+from typing import ClassVar, Protocol, Self
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -232,6 +232,14 @@ class RationalFitter(Estimator):
         self.warm_start = warm_start
 
     # -- validation -------------------------------------------------------------------
+    @classmethod
+    def from_options(cls, options: FitOptions) -> Self:
+        """The estimator of checked ``options`` (an ``options_type``)."""
+        if type(options) is not cls.options_type:
+            raise TypeError(f"{cls.__name__} takes {cls.options_type.__name__}, "
+                            f"got {type(options).__name__}")
+        return cls(**options.params())
+
     def options(self) -> FitOptions:
         """The constructor parameters as checked options (InputError when one is bad)."""
         return self.options_type.from_params(self.get_params(deep=False))

@@ -3,7 +3,7 @@
 Also the shared plumbing of ``ratfit plot``, ``ratfit report`` and
 ``ratfit brdf compare``: loading a fit file with its parametrization (if it is a
 BRDF fit), reading data in the fit's coordinates, and computing the same
-metrics (:func:`ratfit.brdf.analytic_models.brdf_metrics`) for rational and analytic fits.
+metrics (:func:`ratfit.brdf.analytic_models.channel_metrics`) for rational and analytic fits.
 """
 
 from __future__ import annotations
@@ -22,7 +22,7 @@ from ratfit.errors import InputError
 from ratfit.io.data import Dataset
 from ratfit.io.fitfile import SavedFit
 
-__all__ = ["LoadedFit", "compare_table", "load_data_for", "load_fit_any", "write_report"]
+__all__ = ["LoadedFit", "compare_table", "load_data_for", "write_report"]
 
 Array = NDArray[np.float64]
 
@@ -46,13 +46,14 @@ class LoadedFit:
     def channel_names(self) -> list[str]:
         return [c.name for c in self.saved.channels]
 
+    @classmethod
+    def load(cls, path: str | os.PathLike[str]) -> LoadedFit:
+        """A ratfit fit file; BRDF fits (through :mod:`ratfit.brdf`) keep their
+        parametrization (:func:`ratfit.export.code.load_any_fit`)."""
+        from ratfit.export.code import load_any_fit
 
-def load_fit_any(path: str | os.PathLike[str]) -> LoadedFit:
-    """A ratfit fit file; BRDF fits (through :mod:`ratfit.brdf`) keep their parametrization."""
-    from ratfit.export.code import load_any_fit
-
-    saved, bf = load_any_fit(path)
-    return LoadedFit(str(path), saved, bf)
+        saved, bf = load_any_fit(path)
+        return cls(str(path), saved, bf)
 
 
 def load_data_for(fit: LoadedFit, data_path: str | os.PathLike[str]) -> Dataset:
@@ -122,14 +123,14 @@ def segments_of(fit: LoadedFit, ds: Dataset):
 
 
 def rational_metrics(fit: LoadedFit, ds: Dataset) -> list[dict[str, Any]]:
-    from ratfit.brdf.analytic_models import brdf_metrics
+    from ratfit.brdf.analytic_models import channel_metrics
 
     assert fit.brdf is not None
     pred = fit.brdf.eval_coords(ds.x)
     cos_l = data_dirs(fit.param, ds)[0][:, 2]
     out = []
     for j, ch in enumerate(fit.saved.channels):
-        m = brdf_metrics(pred[:, j], ds.y[:, j], cos_l)
+        m = channel_metrics(pred[:, j], ds.y[:, j], cos_l)
         m.update({"name": "rational", "channel": ch.name, "coefficients": ch.rational.total,
                   "detail": f"n={ch.rational.n}, m={ch.rational.m}"})
         out.append(m)
@@ -150,7 +151,7 @@ def model_fit_for(param: str, ds: Dataset, spec: str, *, starts: int = 6, seed: 
 
 def model_metrics(mf, param: str, ds: Dataset) -> list[dict[str, Any]]:
     """Metrics of an analytic fit on the data values as the file gives them."""
-    from ratfit.brdf.analytic_models import brdf_metrics
+    from ratfit.brdf.analytic_models import channel_metrics
 
     L, V = data_dirs(param, ds)
     pred = mf.eval_dirs(L, V)
@@ -158,7 +159,7 @@ def model_metrics(mf, param: str, ds: Dataset) -> list[dict[str, Any]]:
         pred = pred * L[:, 2:3]
     out = []
     for j in range(ds.n_channels):
-        m = brdf_metrics(pred[:, min(j, pred.shape[1] - 1)], ds.y[:, j], L[:, 2])
+        m = channel_metrics(pred[:, min(j, pred.shape[1] - 1)], ds.y[:, j], L[:, 2])
         p = mf.params[min(j, mf.n_channels - 1)]
         m.update({"name": mf.name, "channel": ds.output_names[j], "coefficients": int(p.size),
                   "detail": ", ".join(f"{n}={v:.4g}" for n, v in
@@ -219,7 +220,7 @@ def write_report(fit_path: str | os.PathLike[str], data_path: str | os.PathLike[
     from ratfit._version import __version__
     from ratfit.viz import pictures as pic
 
-    fit = load_fit_any(fit_path)
+    fit = LoadedFit.load(fit_path)
     ds = load_data_for(fit, data_path) if data_path is not None else None
     out = Path(outdir)
     res = ReportResult(out / "index.html")
@@ -288,12 +289,12 @@ def write_report(fit_path: str | os.PathLike[str], data_path: str | os.PathLike[
 
 
 def _plain_metrics(fit: LoadedFit, ds: Dataset) -> list[dict[str, Any]]:
-    from ratfit.brdf.analytic_models import brdf_metrics
+    from ratfit.brdf.analytic_models import channel_metrics
 
     pred = fit.saved(ds.x)
     out = []
     for j, ch in enumerate(fit.saved.channels):
-        m = brdf_metrics(pred[:, j], ds.y[:, j])
+        m = channel_metrics(pred[:, j], ds.y[:, j])
         m.update({"name": "rational", "channel": ch.name, "coefficients": ch.rational.total,
                   "detail": f"n={ch.rational.n}, m={ch.rational.m}"})
         out.append(m)
