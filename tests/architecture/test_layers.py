@@ -102,7 +102,7 @@ def test_jobs_are_the_floor_between_the_library_and_its_front_ends() -> None:
         for _, target in _imports(dotted, path):
             assert _unit(target) not in ("cli", "batch"), f"{dotted} imports {target}"
     front = {"ratfit.cli.fit": "ratfit.jobs", "ratfit.cli.brdf": "ratfit.jobs",
-             "ratfit.cli.render": "ratfit.jobs"}
+             "ratfit.cli.render": "ratfit.jobs", "ratfit.batch.runner": "ratfit.jobs"}
     for dotted, path in _modules():
         if dotted in front:
             targets = {t for _, t in _imports(dotted, path)}

@@ -369,3 +369,66 @@ def test_cli_ctrl_c_exits_130_and_leaves_no_partial_file(tmp_path):
     assert not leftovers(out)
     for p in out.glob("*.json"):
         assert load_fit(p).channels[0].summary["verified"]
+
+
+# ------------------------------------------------------------------------------ BRDF files
+def _cornell_manifest(shared: Path) -> dict[str, Any]:
+    return {"defaults": {"max_points": 100, "channels": ["R"]},
+            "inputs": [str(shared / "cornell" / "garnet_red.brdf"),
+                       str(shared / "cornell" / "krylon_blue.brdf")]}
+
+
+def test_a_cornell_entry_is_the_request_of_the_brdf_command(shared_data, tmp_path):
+    """Issue 25: a Cornell file in a manifest failed ("line 9: expected 1 value, got
+    19"); it is now one task per file whose request is the one `ratfit brdf fit
+    FILE --max-points 100 --channel R --jobs 1` makes (BRDF solver by default)."""
+    from ratfit.jobs import BRDFFitRequest
+
+    tasks, unreadable = batch.plan(_cornell_manifest(shared_data), base_dir=tmp_path)
+    assert not unreadable and [t.channel for t in tasks] == ["R", "R"]
+    for t in tasks:
+        req = batch.request_of(t.settings, Path(t.path))
+        # jobs=1: the batch's default (Dask runs the tasks in parallel)
+        assert req == BRDFFitRequest.from_settings(t.path, {"max_points": 100, "jobs": 1,
+                                                            "channels": ["R"]})
+        assert req.options.solver == BRDFFitRequest(t.path).options.solver
+    # every channel of the file by default: one task for all of them
+    tasks, _ = batch.plan({"inputs": [str(shared_data / "cornell" / "cayman.brdf")]})
+    assert [(t.channel, t.settings["kind"]) for t in tasks] == [("R,G,B", "brdf")]
+    assert batch.request_of(tasks[0].settings, Path(tasks[0].path)).channels == ()
+    # BRDF settings on a data file (and data settings on a BRDF file) are refused
+    with pytest.raises(InputError, match="max_points is a setting of BRDF files"):
+        batch.load_manifest({"inputs": [{"path": "a.csv", "max_points": 5}]}, base_dir=tmp_path)
+    with pytest.raises(InputError, match="monomial is a setting of data files"):
+        batch.load_manifest({"inputs": [{"path": "b.brdf", "monomial": False}]},
+                            base_dir=tmp_path)
+
+
+def test_settings_ids_of_data_entries_do_not_move():
+    """The BRDF settings are hashed only when set: ids of earlier data batches hold."""
+    base = {k: batch.DEFAULTS[k] for k in batch.DEFAULTS}
+    assert batch.settings_id(base) == batch.settings_id({**base, "kind": "data"})
+    assert batch.settings_id({**base, "kind": "brdf"}) != batch.settings_id(base)
+    assert batch.settings_id({**base, "max_points": 60}) != batch.settings_id(base)
+
+
+@pytest.mark.slow
+def test_a_batch_of_cornell_files_equals_them_fitted_one_by_one(client, shared_data, tmp_path):
+    """Same file, same options (the batch's jobs=1 included): the same coefficients.
+    (The threads of a BRDF search change which splits are tried and so which validity
+    points later splits carry: jobs is an option like the others.)"""
+    from ratfit.brdf.options import BRDFOptions
+    from ratfit.jobs import BRDFFitRequest, fit_brdf_file
+
+    out = tmp_path / "out"
+    summary = batch.run(_cornell_manifest(shared_data), client, outdir=out)
+    assert summary.ok and len(summary.rows) == 2
+    for row in summary.rows:
+        doc = json.loads((out / row["fit_file"]).read_text())
+        alone = fit_brdf_file(BRDFFitRequest(shared_data / "cornell" / Path(row["input"]).name,
+                                             BRDFOptions(jobs=1), max_points=100,
+                                             channels=("R",))).document()
+        assert [(c["p"], c["q"]) for c in doc["channels"]] == \
+            [(c["p"], c["q"]) for c in alone["channels"]]
+        assert doc["brdf"]["parametrization"] == alone["brdf"]["parametrization"]
+        assert (row["n"], row["m"]) == (alone["channels"][0]["n"], alone["channels"][0]["m"])

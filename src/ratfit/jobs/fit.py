@@ -162,7 +162,7 @@ class FitReport:
         return doc
 
 
-def fit_file(request: FitRequest | str | Path) -> FitReport:
+def fit_file(request: FitRequest | str | Path, *, data: Any = None) -> FitReport:
     """Fit a data file as ``request`` says; the one path of ``ratfit fit`` and batch tasks.
 
     The file is parsed once, its segments built once; with ``request.output`` the
@@ -172,6 +172,9 @@ def fit_file(request: FitRequest | str | Path) -> FitReport:
     ----------
     request : FitRequest or path
         What to fit; a bare path is ``FitRequest(path)`` (every default).
+    data : Dataset, optional
+        ``request.input`` already parsed with the request's format and dim (a
+        batch worker parses an input once for all its channels' tasks).
 
     Returns
     -------
@@ -197,7 +200,8 @@ def fit_file(request: FitRequest | str | Path) -> FitReport:
     req = request if isinstance(request, FitRequest) else FitRequest(Path(request))
     clock = Clock()
     with clock.phase("read"):
-        data = read_data(req.input, fmt=req.format, dim=req.dim)
+        if data is None:
+            data = read_data(req.input, fmt=req.format, dim=req.dim)
         digest = file_sha256(req.input)
     with clock.phase("segments"):
         seg = _segments(req, data)
