@@ -305,8 +305,14 @@ class SharedDenominatorFitter(Estimator):
 
     Parameters
     ----------
-    basis, index_set, domain, solver, cross_check, callback
-        As for :class:`~ratfit.fitting.search.RationalFitter`.
+    basis, index_set, domain, solver, cross_check, callback, active_set, formulation, \
+variable, warm_start
+        As for :class:`~ratfit.fitting.search.RationalFitter` (``variable`` "x" or
+        "auto": a shared denominator is fitted in x; ``formulation`` "arnoldi" or
+        "auto": data-orthonormal bases).
+    n, total, min_total, max_total, strategy, split_rule
+        The single-channel search's; refused unless at their defaults (the sizes
+        are searched here, bounded by ``max_n`` and ``max_m``).
     m : int, optional
         Fix the denominator size (then only the numerators are searched).
     max_n : int, default 60
@@ -347,18 +353,25 @@ class SharedDenominatorFitter(Estimator):
                  max_m: int = 30, solver: str = "quadprog", cross_check: str = "orth",
                  jobs: int | None = 1,
                  callback: Callable[[Attempt], None] | None = None,
-                 time_limit: float | None = DEFAULT_TIME_LIMIT) -> None:
+                 time_limit: float | None = DEFAULT_TIME_LIMIT, n: int | None = None,
+                 total: int | None = None, min_total: int = 2, max_total: int | None = None,
+                 strategy: str = "staircase", split_rule: str = "min-m",
+                 active_set: bool | None = None, formulation: str = "auto",
+                 variable: str = "auto", warm_start: bool = True) -> None:
         self.basis, self.index_set, self.domain = basis, index_set, domain
         self.m, self.max_n, self.max_m = m, max_n, max_m
         self.solver, self.cross_check = solver, cross_check
         self.jobs, self.callback = jobs, callback
         self.time_limit = time_limit
+        self.n, self.total, self.min_total, self.max_total = n, total, min_total, max_total
+        self.strategy, self.split_rule, self.active_set = strategy, split_rule, active_set
+        self.formulation, self.variable, self.warm_start = formulation, variable, warm_start
 
     @classmethod
     def from_options(cls, options: SharedOptions) -> SharedDenominatorFitter:
-        """The fitter of checked ``options`` (every option it does not take was refused
+        """The fitter of checked ``options`` (the options it cannot honour were refused
         when they were made)."""
-        return cls(**{k: getattr(options, k) for k in cls._get_param_names()})
+        return cls(**options.params())
 
     def options(self) -> SharedOptions:
         """The constructor parameters as checked options (InputError when one is bad)."""
