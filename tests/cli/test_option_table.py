@@ -163,3 +163,29 @@ def test_shared_denominator_honours_the_time_limit(tmp_path: Path) -> None:
     assert len(cut.history) == 1 and not cut.proven
     assert all(r.time_limited for r in cut.results)
     assert "time limit of 1e-09 s reached after 1 QP test(s)" in cut.results[0].message
+
+
+# The BRDF fitter's own options (its spec extends the base one), as `brdf fit` spells them.
+BRDF_ROWS = [
+    ("parametrization", ["--param", "isotropic_tv_tl_dphi"], "ISOTROPIC_TV_TL_DPHI"),
+    ("positive_q", ["--positive-q"], True),
+    ("polish", ["--no-polish"], False),
+]
+
+
+def test_brdf_rows_cover_the_brdf_spec() -> None:
+    from ratfit.brdf.options import BRDF_OPTIONS
+
+    own = set(BRDF_OPTIONS) - set(FIT_OPTIONS)
+    # physical: always on from the command; used_coords: what the job finds in the file
+    assert {r[0] for r in BRDF_ROWS} == own - {"physical", "used_coords"}
+
+
+@pytest.mark.parametrize(("name", "args", "value"), BRDF_ROWS, ids=lambda v: str(v))
+def test_brdf_fit_options_reach_the_engine(name: str, args: list[str], value: Any,
+                                           tmp_path: Path, engine_options: list[Any]) -> None:
+    if not (shared_data_dir() / "cornell").is_dir():
+        pytest.skip("no shared data")
+    res = run_cli(*_inputs(tmp_path)["brdf fit"], *args)
+    assert res.exit_code == 130, res.output
+    assert getattr(engine_options[0], name) == value
