@@ -588,10 +588,11 @@ def execute(task: Task) -> tuple[dict[str, Any], dict[str, Any] | None]:
         from ratfit.jobs import fit_brdf_file, fit_file
 
         report: Any
-        if s["kind"] == "brdf":
-            report = fit_brdf_file(request_of(s, Path(task.path)))
+        request = request_of({**s, "channels": [task.channel_index]} if s["kind"] == "data"
+                             else s, Path(task.path))
+        if isinstance(request, BRDFFitRequest):
+            report = fit_brdf_file(request)
         else:
-            request = request_of({**s, "channels": [task.channel_index]}, Path(task.path))
             report = fit_file(request, data=_dataset(task.path, s["format"], s["dim"]))
         values = _row_values(report.results)
         values["wall_seconds"] = round(time.perf_counter() - t0, 6)

@@ -87,7 +87,7 @@ class Geometry:
     cos_d: Array
     lv_xy: Array  # Lx Vx + Ly Vy
     lv_z: Array  # Lz Vz
-    above: Array  # both directions strictly above the horizon
+    above: NDArray[np.bool_]  # both directions strictly above the horizon
 
     @classmethod
     def from_dirs(cls, L: ArrayLike, V: ArrayLike) -> Geometry:

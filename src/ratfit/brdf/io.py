@@ -432,7 +432,7 @@ def read_exr(path: _PathLike, param: str = "STARK_2D") -> BRDFSamples:
                 planes[c] = v[:, :, i]
         else:
             planes[k] = v
-    order = [c for c in ("R", "G", "B") if c in planes] or sorted(planes)
+    order: list[str] = [c for c in ("R", "G", "B") if c in planes] or sorted(planes)
     h, w = planes[order[0]].shape
     p = get_parametrization(param)
     if p.dim != 2:

@@ -239,7 +239,7 @@ class MonotoneSystem:
             block = self._full_block(slice(start, start + _CHUNK // 4))
             if acc is not None:
                 block = np.vstack([acc, block])
-            acc = np.linalg.qr(block, mode="r")
+            acc = np.asarray(np.linalg.qr(block, mode="r"), dtype=np.float64)
         assert acc is not None
         return acc[: 2 * self._k] if acc.shape[0] > 2 * self._k else acc
 
@@ -540,7 +540,7 @@ def fit_cdf(segments: Segments, **params):
 
 
 # ----------------------------------------------------------------------------- inputs
-def _sorted_x(x: ArrayLike, name: str) -> tuple[Array, Array]:
+def _sorted_x(x: ArrayLike, name: str) -> tuple[Array, NDArray[np.intp]]:
     try:
         xa = np.asarray(x, dtype=float)
     except (TypeError, ValueError) as exc:
@@ -574,7 +574,7 @@ def _finite_or_raise(v: Array, name: str) -> None:
         )
 
 
-def _values(v: ArrayLike, n: int, name: str, order: Array) -> Array:
+def _values(v: ArrayLike, n: int, name: str, order: NDArray[np.intp]) -> Array:
     try:
         va = np.ravel(np.asarray(v, dtype=float))
     except (TypeError, ValueError) as exc:

@@ -193,7 +193,7 @@ def _read_table(path: Path, width: int) -> np.ndarray:
 
     if not path.is_file():
         raise FileFormatError(f"{path}: no such file")
-    rows = []
+    rows: list[list[float]] = []
     for n, raw in enumerate(path.read_text(errors="replace").splitlines(), start=1):
         s = raw.strip()
         if not s or s.startswith("#"):

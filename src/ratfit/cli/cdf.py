@@ -175,6 +175,7 @@ def cdf_cmd(input_path: Path, output: Path | None, source: str | None, fmt: str 
     if output is not None and ok:
         from ratfit.cdf.sampling import RationalCDF
 
+        assert res.rational is not None  # a verified fit has its rational
         model = RationalCDF(res.rational)
         doc = fit_document(fitter.results_, provenance={
             "input": str(input_path), "input_sha256": file_sha256(input_path),
@@ -193,7 +194,8 @@ def cdf_cmd(input_path: Path, output: Path | None, source: str | None, fmt: str 
         _print_report(fitter.results_, output if ok and output else None)
         ver = res.verification
         if ver is not None and not getattr(ver, "monotone", True):
-            click.echo(f"not monotone between constraint points (min step {ver.min_step:.3g}): "
+            step = getattr(ver, "min_step", float("nan"))
+            click.echo(f"not monotone between constraint points (min step {step:.3g}): "
                        "add constraint points with --grid K", err=True)
         if output is not None and not ok:
             click.echo(f"no fit file written: the CDF fit is not verified ({output})", err=True)

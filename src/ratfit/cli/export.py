@@ -88,13 +88,15 @@ def _plot_values(fit: Any, ds: Any, data_path: Path | None, kind: str, output: P
         raise InputError(f"--dim {dim} out of range: the fit has "
                          f"{fit.saved.space.dim} input dimension(s)")
     seg = segments_of(fit, ds) if ds is not None else None
-    kw = {"lo": None if seg is None else seg.lo, "hi": None if seg is None else seg.hi,
-          "dim": dim, "channel": channel, "names": coordinate_names(fit, ds)}
+    lo, hi = (None, None) if seg is None else (seg.lo, seg.hi)
+    names = coordinate_names(fit, ds)
     if kind == "slice":
         pic.plot_slice(fit.saved, output, x=None if ds is None else ds.x,
-                       y=None if ds is None else ds.y, **kw)
+                       y=None if ds is None else ds.y, lo=lo, hi=hi, dim=dim,
+                       channel=channel, names=names)
     else:
-        pic.plot_error(fit.saved, output, ds.x, ds.y, **kw)
+        pic.plot_error(fit.saved, output, ds.x, ds.y, lo=lo, hi=hi, dim=dim,
+                       channel=channel, names=names)
     if seg is not None and data_path is not None:
         _say_recheck(fit, seg, data_path)
 

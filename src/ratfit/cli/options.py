@@ -125,7 +125,7 @@ class _AliasedOption(click.Option):
         finally:
             self.opts = saved
 
-    def get_error_hint(self, ctx: click.Context) -> str:
+    def get_error_hint(self, ctx: click.Context | None) -> str:
         return " / ".join(f"'{o}'" for o in self.opts if o not in self.hidden_names)
 
 

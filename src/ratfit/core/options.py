@@ -40,7 +40,6 @@ __all__ = [
     "Option",
     "check_fit_params",
     "check_options_class",
-    "check_segment_params",
     "extend_spec",
 ]
 
@@ -263,10 +262,6 @@ def check_fit_params(params: Mapping[str, Any], *, where: str | None = None,
     own = {k: v for k, v in params.items() if k not in extra or k in FIT_OPTIONS}
     return FitOptions.from_params(own, where=where).params()
 
-
-def check_segment_params(params: Mapping[str, Any], *, where: str | None = None) -> dict[str, Any]:
-    """``dt`` and ``abs_width`` checked (each None or a finite number >= 0)."""
-    return {k: o.check(params.get(k, o.default), where) for k, o in SEGMENT_OPTIONS.items()}
 
 
 @dataclass(frozen=True)

@@ -653,7 +653,8 @@ class SearchEngine:
         self.deadline = deadline
         self.cancel = cancel
         # distinct points, from the system's sort order (np.unique on rows is slow)
-        srt = self.system.t[self.system._order]
+        order = getattr(self.system, "_order", None)
+        srt = self.system.t[np.lexsort(self.system.t.T[::-1]) if order is None else order]
         self.cap = 1 + int(np.count_nonzero(np.any(srt[1:] != srt[:-1], axis=1)))
         grid = self.parts.pole_grid
         if grid is None:
@@ -723,6 +724,7 @@ class SearchEngine:
             if (att.timed_out or att.status != "feasible" or ver is None or ver.verified
                     or ver.n_violations or not np.isfinite(ver.linf)):
                 break
+            assert count is not None  # again_at_most is 0 without it
             now = count()
             if now <= before or (self.deadline is not None
                                  and time.perf_counter() > self.deadline):
@@ -870,7 +872,8 @@ class SearchEngine:
         total = t0
         while above is None and total <= hi:
             width = self._batch_width()
-            probes, t, st = [], total, step
+            probes: list[tuple[int, int]] = []
+            t, st = total, step
             while len(probes) < width and t <= hi:
                 probes.append(_balanced(t))
                 # the last total hi is always tested: no jump past the range
@@ -924,7 +927,7 @@ class SearchEngine:
         m = 1
         target = best[0] + best[1] - 1
         while target >= lo:
-            cols = []
+            cols: list[tuple[int, int]] = []
             mm = m
             width = self._batch_width()
             while len(cols) < width and target - mm >= 1:

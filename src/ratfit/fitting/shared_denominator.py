@@ -33,7 +33,7 @@ from __future__ import annotations
 import dataclasses
 import threading
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 from typing import Any, ClassVar
@@ -633,7 +633,3 @@ class _SharedSearch:
             channel=self.seg.names[j], history=(), disagreements=disagreements,
         )
 
-
-def independent_total(results: Sequence[FitResult]) -> int:
-    """Coefficients of independent per-channel fits: sum(n_c + m_c)."""
-    return sum(r.total for r in results)

@@ -198,6 +198,7 @@ def best_width(
     fit, seg = fits[hi]
     if certify_lower and lo > 0:
         seg_lo = segments(lo)
+        assert fit.rational is not None  # a verified fit
         cert = certify(fit.rational.space, seg_lo, 0, int(n), int(m),
                        formulation="arnoldi" if _arnoldi_ok(fit) else "basis")
     return ToleranceResult(hi, lo, absolute, fit, seg, cert, tuple(steps),

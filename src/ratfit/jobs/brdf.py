@@ -15,6 +15,7 @@ from ratfit.core.results import FitResult
 from ratfit.core.segments import Segments
 from ratfit.core.validation import check_choice
 from ratfit.errors import InputError
+from ratfit.io.data import Dataset
 from ratfit.jobs.common import (
     Clock,
     as_path,
@@ -230,17 +231,18 @@ def fit_brdf_file(request: BRDFFitRequest | str | Path) -> BRDFFitReport:
         samples = read_brdf(req.input, fmt=req.format)
         digest = file_sha256(req.input)
     with clock.phase("frames"):
-        pick = dict(channels=list(req.channels) or None, color=req.color,
-                    max_points=req.max_points)
-        own_ds = samples_dataset(samples, None, **pick)
+        def frame(name: str | None) -> Dataset:
+            return samples_dataset(samples, name, channels=list(req.channels) or None,
+                                   color=req.color, max_points=req.max_points)
+
+        own_ds = frame(None)
         own = str(own_ds.meta.get("param_in"))
         first = req.parametrization or ISOTROPIC_DEFAULT.get(own, own)
         o = req.options
         # No frame and no fixed size given: the half-vector frame first, then the angles.
         names = (first,) if req.parametrization or o.n is not None or o.total is not None \
             else candidate_parametrizations(first)
-        datasets = [own_ds if name == own else samples_dataset(samples, name, **pick)
-                    for name in names]
+        datasets = [own_ds if name == own else frame(name) for name in names]
     with clock.phase("fit"):
         kw = {k: v for k, v in o.params().items() if k not in ("parametrization", "used_coords")}
         fitter, seg, meta = fit_brdf_auto(datasets, dt=req.dt, abs_width=req.abs_width,

@@ -69,6 +69,7 @@ def load_data_for(fit: LoadedFit, data_path: str | os.PathLike[str]) -> Dataset:
                 raise InputError(
                     f"{data_path} has channels {list(ds.output_names)} but the fit has "
                     f"{fit.channel_names}")
+            assert ds.y is not None  # BRDF files have values
             ds = Dataset(ds.x, ds.y[:, keep], None if ds.lo is None else ds.lo[:, keep],
                          None if ds.hi is None else ds.hi[:, keep], ds.input_names,
                          tuple(ds.output_names[j] for j in keep), dict(ds.meta))
@@ -125,15 +126,14 @@ def segments_of(fit: LoadedFit, ds: Dataset):
 def rational_metrics(fit: LoadedFit, ds: Dataset) -> list[dict[str, Any]]:
     from ratfit.brdf.analytic_models import channel_metrics
 
-    assert fit.brdf is not None
+    assert fit.brdf is not None and fit.param is not None and ds.y is not None
     pred = fit.brdf.eval_coords(ds.x)
     cos_l = data_dirs(fit.param, ds)[0][:, 2]
-    out = []
+    out: list[dict[str, Any]] = []
     for j, ch in enumerate(fit.saved.channels):
-        m = channel_metrics(pred[:, j], ds.y[:, j], cos_l)
-        m.update({"name": "rational", "channel": ch.name, "coefficients": ch.rational.total,
-                  "detail": f"n={ch.rational.n}, m={ch.rational.m}"})
-        out.append(m)
+        out.append({**channel_metrics(pred[:, j], ds.y[:, j], cos_l), "name": "rational",
+                    "channel": ch.name, "coefficients": ch.rational.total,
+                    "detail": f"n={ch.rational.n}, m={ch.rational.m}"})
     return out
 
 
@@ -153,18 +153,19 @@ def model_metrics(mf, param: str, ds: Dataset) -> list[dict[str, Any]]:
     """Metrics of an analytic fit on the data values as the file gives them."""
     from ratfit.brdf.analytic_models import channel_metrics
 
+    assert ds.y is not None
     L, V = data_dirs(param, ds)
     pred = mf.eval_dirs(L, V)
     if cos_factor(ds):
         pred = pred * L[:, 2:3]
-    out = []
+    out: list[dict[str, Any]] = []
     for j in range(ds.n_channels):
         m = channel_metrics(pred[:, min(j, pred.shape[1] - 1)], ds.y[:, j], L[:, 2])
         p = mf.params[min(j, mf.n_channels - 1)]
-        m.update({"name": mf.name, "channel": ds.output_names[j], "coefficients": int(p.size),
-                  "detail": ", ".join(f"{n}={v:.4g}" for n, v in
-                                      zip(mf.model.param_names, p, strict=True))})
-        out.append(m)
+        out.append({**m, "name": mf.name, "channel": ds.output_names[j],
+                    "coefficients": int(p.size),
+                    "detail": ", ".join(f"{n}={v:.4g}" for n, v in
+                                        zip(mf.model.param_names, p, strict=True))})
     return out
 
 
@@ -230,7 +231,7 @@ def write_report(fit_path: str | os.PathLike[str], data_path: str | os.PathLike[
     # metrics first: a failure here leaves no folder behind
     model_fits = []
     if ds is not None:
-        if fit.is_brdf:
+        if fit.param is not None:
             res.metrics = rational_metrics(fit, ds)
             for spec in models:
                 mf = model_fit_for(fit.param, ds, spec)
@@ -250,8 +251,9 @@ def write_report(fit_path: str | os.PathLike[str], data_path: str | os.PathLike[
                                                     y=dy, lo=lo, hi=hi, channel=j,
                                                     names=names)))
         if ds is not None:
+            assert ds.y is not None
             pics.append((f"channel {fit.channel_names[j]}: signed error at every data point",
-                         pic.plot_error(fit.saved, out / f"error_{j}.png", dx, dy, lo=lo,
+                         pic.plot_error(fit.saved, out / f"error_{j}.png", ds.x, ds.y, lo=lo,
                                         hi=hi, channel=j, names=names)))
     if fit.is_brdf:
         assert fit.param is not None
@@ -261,6 +263,7 @@ def write_report(fit_path: str | os.PathLike[str], data_path: str | os.PathLike[
             funcs[mf.name] = mf.eval_dirs
         data_fn = None
         if ds is not None:
+            assert ds.y is not None
             data_fn = pic.DataBRDF(ds.x, ds.y, fit.param, cos_factor=cf,
                                    fold_phi_d=bool(ds.meta.get("fold_phi_d")))
         pics.append(("BRDF against theta_h for several theta_d (phi_d = 90 deg)",
@@ -291,13 +294,13 @@ def write_report(fit_path: str | os.PathLike[str], data_path: str | os.PathLike[
 def _plain_metrics(fit: LoadedFit, ds: Dataset) -> list[dict[str, Any]]:
     from ratfit.brdf.analytic_models import channel_metrics
 
+    assert ds.y is not None
     pred = fit.saved(ds.x)
-    out = []
+    out: list[dict[str, Any]] = []
     for j, ch in enumerate(fit.saved.channels):
-        m = channel_metrics(pred[:, j], ds.y[:, j])
-        m.update({"name": "rational", "channel": ch.name, "coefficients": ch.rational.total,
-                  "detail": f"n={ch.rational.n}, m={ch.rational.m}"})
-        out.append(m)
+        out.append({**channel_metrics(pred[:, j], ds.y[:, j]), "name": "rational",
+                    "channel": ch.name, "coefficients": ch.rational.total,
+                    "detail": f"n={ch.rational.n}, m={ch.rational.m}"})
     return out
 
 
