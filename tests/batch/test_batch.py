@@ -414,9 +414,7 @@ def test_settings_ids_of_data_entries_do_not_move():
 
 @pytest.mark.slow
 def test_a_batch_of_cornell_files_equals_them_fitted_one_by_one(client, shared_data, tmp_path):
-    """Same file, same options (the batch's jobs=1 included): the same coefficients.
-    (The threads of a BRDF search change which splits are tried and so which validity
-    points later splits carry: jobs is an option like the others.)"""
+    """Same file, same options: the same coefficients."""
     from ratfit.brdf.options import BRDFOptions
     from ratfit.jobs import BRDFFitRequest, fit_brdf_file
 

@@ -812,8 +812,15 @@ class SearchEngine:
         """Threads pay off only when QPs are slow: on small problems the Python
         overhead between solver calls holds the GIL and two threads run slower
         than one (measured in benchmarks/bench_core.py). With ``jobs=None`` the
-        pool is used once the QPs so far average more than 20 ms."""
-        if self.jobs <= 1:
+        pool is used once the QPs so far average more than 20 ms.
+
+        A verifier that learns from each candidate (``parts.constraint_points``:
+        the BRDF validity points that later splits carry) makes each split depend
+        on the ones verified before it, so its splits run one at a time, in the
+        walk's order: splits tested side by side took those points in whatever
+        order their threads finished, and the same fit of cayman.brdf gave other
+        coefficients (and 3+7 instead of 1+8 for R) from run to run."""
+        if self.jobs <= 1 or self.parts.constraint_points is not None:
             return False
         if self.options.jobs is not None:
             return True
