@@ -95,6 +95,7 @@ def leftovers(out: Path) -> list[Path]:
 
 
 # ------------------------------------------------------------------------------ fault tolerance
+@pytest.mark.slow
 def test_worker_killed_mid_batch_matches_serial(client, shared_data, tmp_path):
     synth = write_synthetic(tmp_path / "data")
     manifest = manifest_for(shared_data, synth)
@@ -159,6 +160,7 @@ def test_worker_killed_mid_batch_matches_serial(client, shared_data, tmp_path):
 
 
 # ------------------------------------------------------------------------------ resume
+@pytest.mark.slow
 def test_interrupted_batch_resumes_without_refitting(client, tmp_path):
     synth = write_synthetic(tmp_path / "data")
     manifest = {"settings": [{"dt": 1e-2}, {"dt": 1e-3}, {"dt": 1e-4}],
@@ -200,6 +202,7 @@ def test_interrupted_batch_resumes_without_refitting(client, tmp_path):
     assert third.fitted == 0 and third.skipped == 12
 
 
+@pytest.mark.slow
 def test_failed_rerun_on_request_and_changed_input_refits(client, tmp_path):
     synth = write_synthetic(tmp_path / "data")
     manifest = {"inputs": [{"path": "zero/line.csv", "dt": 0.01},
@@ -268,6 +271,7 @@ def test_plan_names_ids_and_precedence(tmp_path):
     assert not set(t.name for t in batch.plan(doc, synth)[0]) & set(names)
 
 
+@pytest.mark.slow
 def test_unreadable_input_is_a_failed_row_not_an_error(client, tmp_path):
     synth = write_synthetic(tmp_path / "data")
     (synth / "broken.csv").write_text("x,y\n1,2\n3\n")
@@ -328,6 +332,7 @@ def test_cli_bad_usage_exit_2(tmp_path, monkeypatch):
                  (re.escape('pip install ".[batch]"'), "distributed"), out)
 
 
+@pytest.mark.slow
 def test_cli_runs_on_an_existing_scheduler(client, shared_data, tmp_path):
     m = tmp_path / "m.toml"
     m.write_text(f'[defaults]\ndt = 0.02\n[[inputs]]\npath = "{shared_data}/nist/Rat4*.dat"\n')
@@ -345,6 +350,7 @@ def test_cli_runs_on_an_existing_scheduler(client, shared_data, tmp_path):
     assert r.exit_code == 0 and re.search(counts, r.stdout), r.stdout
 
 
+@pytest.mark.slow
 def test_cli_ctrl_c_exits_130_and_leaves_no_partial_file(tmp_path):
     """A real SIGINT to `ratfit batch` with its own LocalCluster (1 worker)."""
     synth = write_synthetic(tmp_path / "data")

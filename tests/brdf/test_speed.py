@@ -20,6 +20,7 @@ def _exr(shared_data: Path, points: int):
     return brdf_dataset(path, None, channels=["B"], max_points=points)
 
 
+@pytest.mark.slow
 def test_warm_start_and_subset_bases_give_the_cold_answer(shared_data: Path,
                                                           monkeypatch) -> None:
     ds = _exr(shared_data, 800)
@@ -39,6 +40,7 @@ def test_warm_start_and_subset_bases_give_the_cold_answer(shared_data: Path,
     assert w.verification.n_points == 800 and w.verification.max_violation == 0.0
 
 
+@pytest.mark.slow
 def test_subset_fit_says_so_in_its_status(shared_data: Path) -> None:
     """--max-points: the status is "verified on a subset of K of N samples", never
     plain "verified", in the table, the result's message and the JSON."""
@@ -73,6 +75,7 @@ def test_subset_fit_says_so_in_its_status(shared_data: Path) -> None:
     assert meta["verified_on"] == "a random subset of 300 of 262144 samples"
 
 
+@pytest.mark.slow
 def test_channels_side_by_side_give_each_channel_its_own_answer(shared_data: Path,
                                                                 monkeypatch) -> None:
     """Large multi-channel data is searched a channel per thread (splits one at a

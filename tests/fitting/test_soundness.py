@@ -173,6 +173,7 @@ def test_time_limit_stops_a_fruitless_search_without_a_claim() -> None:
     assert secs < 10.0
 
 
+@pytest.mark.slow
 def test_time_limit_stops_inside_one_split(monkeypatch) -> None:
     """The deadline is checked between the active-set rounds of one split, not only
     between splits: a single long split (here: a solver taking 0.2 s a call) stops."""
@@ -261,6 +262,7 @@ def test_one_point_near_zero_on_a_linear_grid_stays_in_x() -> None:
     assert res.success and res.rational.space.variable == "x" and res.n + res.m == 3
 
 
+@pytest.mark.slow
 def test_a_time_limited_fit_says_so_in_the_table_and_the_json(monkeypatch, tmp_path) -> None:
     """A fit found before the time limit ran out is verified, but its total is not
     shown minimal: the table's verified column says "yes*" with the reason below it,

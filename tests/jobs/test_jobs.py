@@ -120,6 +120,7 @@ def test_requests_are_frozen_values(tmp_path: Path) -> None:
 
 
 # ------------------------------------------------------------------------------ BRDF files
+@pytest.mark.slow
 def test_fit_brdf_file_is_what_ratfit_brdf_fit_writes(shared_data: Path, tmp_path: Path) -> None:
     """Same file, same options: the same coefficients from the command and from Python,
     in the 3-D frame the command picks for Cornell's Cartesian pairs (not 6-D)."""
@@ -139,6 +140,7 @@ def test_fit_brdf_file_is_what_ratfit_brdf_fit_writes(shared_data: Path, tmp_pat
                                "(--max-points); not checked at the other 1379")
 
 
+@pytest.mark.slow
 def test_brdf_job_reads_once_and_resolves_each_frames_widths_once(
         shared_data: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     import ratfit.brdf.fitter as fitter
@@ -180,6 +182,7 @@ def test_fit_brdf_file_of_a_path_equals_the_default_command(shared_data: Path,
     assert _coefficients(report.document()) == _coefficients(out)
 
 
+@pytest.mark.slow
 def test_a_brdf_fit_does_not_depend_on_its_threads(shared_data: Path) -> None:
     """The BRDF verifier hands later splits the validity points it finds: splits
     tested side by side took them in thread order, so the same request gave other
