@@ -114,6 +114,18 @@ def cdf_json(fitter, output: Path | None) -> dict[str, Any]:
 
 
 # ---------------------------------------------------------------------------- cdf
+def _one_domain(pairs: list[list[float]] | None) -> tuple[float, float] | None:
+    """The --domain of a CDF: one LO < HI pair, or None (the data's range)."""
+    if pairs is None:
+        return None
+    if len(pairs) != 1:
+        raise InputError(f"a CDF has one variable: give one --domain LO HI, got {len(pairs)}")
+    lo, hi = (float(v) for v in pairs[0])
+    if not hi > lo:
+        raise InputError(f"zero-length or reversed domain {[lo, hi]}")
+    return lo, hi
+
+
 @main.command("cdf")
 @click.argument("input_path", metavar="INPUT", type=click.Path(dir_okay=False, path_type=Path))
 @click.option("-o", "--output", type=click.Path(dir_okay=False, path_type=Path),
@@ -152,14 +164,7 @@ def cdf_cmd(input_path: Path, output: Path | None, source: str | None, fmt: str 
         raise click.UsageError("give both --n and --m, or neither")
     if source is None:
         source = "samples" if input_path.suffix.lower() == ".npy" else "pdf"
-    domain = None
-    if params["domain"] is not None:
-        if len(params["domain"]) != 1:
-            raise InputError(f"a CDF has one variable: give one --domain LO HI, got "
-                             f"{len(params['domain'])}")
-        domain = tuple(params["domain"][0])
-        if not domain[1] > domain[0]:
-            raise InputError(f"zero-length or reversed domain {list(domain)}")
+    domain = _one_domain(params["domain"])
     try:
         seg = _segments(input_path, source, fmt, dt, abs_width, confidence, points, channel,
                         domain)
