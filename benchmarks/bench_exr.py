@@ -43,16 +43,15 @@ def one(path: str, dt: float | None, subset: int, cold: bool) -> dict:
 
     if cold:
         import ratfit.core.qp as qp
-        from ratfit.fitting.search import RationalFitter
 
-        RationalFitter._warm_start = False
         qp.BASIS_POINTS = 10**12
     full = brdf_dataset(path, None)
     ds = brdf_dataset(path, None, max_points=subset or None)
     # the widths of the whole file, for every row (a subset would pick its own)
     dt, abs_width, floor_rel, _ = resolve_widths(full, dt, None, None)
     t0 = time.perf_counter()
-    fitter, seg, _ = fit_brdf(ds, dt=dt, abs_width=abs_width, floor_rel=floor_rel)
+    fitter, seg, _ = fit_brdf(ds, dt=dt, abs_width=abs_width, floor_rel=floor_rel,
+                              warm_start=not cold)
     secs = time.perf_counter() - t0
     every = nonnegative_segments(brdf_segments(full, dt=dt, abs_width=abs_width,
                                                floor_rel=floor_rel))

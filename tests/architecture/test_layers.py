@@ -3,6 +3,8 @@
 Data flows one way (data -> segments -> QP -> fit -> verified result -> export); a
 lower layer that imports an upper one (even inside a function) breaks that and
 brings back import cycles. Packages on one layer are independent of each other.
+The jobs (file -> request -> fit -> report) sit above everything they drive and
+below the two front ends that only build requests for them: batch and the CLI.
 """
 
 from __future__ import annotations
@@ -22,7 +24,9 @@ LAYERS: list[set[str]] = [
     {"cdf", "brdf"},
     {"export"},
     {"viz"},
-    {"batch", "demos", "render"},
+    {"demos", "render"},
+    {"jobs"},
+    {"batch"},
     {"cli"},
     {"__init__", "__main__"},
 ]
@@ -86,6 +90,28 @@ def test_imports_go_down_the_layers(dotted: str, path: Path) -> None:
     assert not bad, f"{dotted} (layer {RANK[me]}) imports upward or sideways:\n" + "\n".join(bad)
 
 
+def test_jobs_are_the_floor_between_the_library_and_its_front_ends() -> None:
+    """Jobs use the library (never the CLI or batch); the CLI and batch reach the
+    fitting and reading code only through jobs for the three main jobs."""
+    assert RANK["batch"] > RANK["jobs"] > max(RANK[p] for p in ("fitting", "io", "brdf",
+                                                                "render", "export"))
+    assert RANK["cli"] > RANK["batch"]
+    jobs = [(d, p) for d, p in _modules() if _unit(d) == "jobs"]
+    assert jobs, "no ratfit.jobs package"
+    for dotted, path in jobs:
+        for _, target in _imports(dotted, path):
+            assert _unit(target) not in ("cli", "batch"), f"{dotted} imports {target}"
+    front = {"ratfit.cli.fit": "ratfit.jobs", "ratfit.cli.brdf": "ratfit.jobs",
+             "ratfit.cli.render": "ratfit.jobs", "ratfit.batch.runner": "ratfit.jobs"}
+    for dotted, path in _modules():
+        if dotted in front:
+            targets = {t for _, t in _imports(dotted, path)}
+            assert any(t.startswith(front[dotted]) for t in targets), dotted
+            # no search of its own: the job runs it
+            assert not targets & {"ratfit.fitting.search",
+                                  "ratfit.fitting.shared_denominator"}, dotted
+
+
 def test_the_contract_catches_a_violation(tmp_path: Path) -> None:
     """The checker itself: a core module importing the CLI is reported."""
     fake = tmp_path / "ratfit" / "core" / "bad.py"
@@ -94,3 +120,17 @@ def test_the_contract_catches_a_violation(tmp_path: Path) -> None:
     found = _imports("ratfit.core.bad", fake)
     assert found == [(2, "ratfit.cli.main"), (3, "ratfit.core.bases")]
     assert RANK[_unit("ratfit.cli.main")] > RANK[_unit("ratfit.core.bad")]
+
+
+def test_no_cli_function_is_longer_than_60_lines() -> None:
+    """The CLI parses, builds a request, calls a job and prints: nothing there grows
+    into a pipeline again (``brdf fit``'s callback was 157 lines). Lines from ``def``
+    to the end of the body; decorators (the options) not counted."""
+    long = []
+    for path in sorted((SRC / "cli").glob("*.py")):
+        for node in ast.walk(ast.parse(path.read_text())):
+            if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)):
+                size = (node.end_lineno or node.lineno) - node.lineno + 1
+                if size > 60:
+                    long.append(f"{path.name}:{node.lineno} {node.name} ({size} lines)")
+    assert not long, long

@@ -95,6 +95,7 @@ def leftovers(out: Path) -> list[Path]:
 
 
 # ------------------------------------------------------------------------------ fault tolerance
+@pytest.mark.slow
 def test_worker_killed_mid_batch_matches_serial(client, shared_data, tmp_path):
     synth = write_synthetic(tmp_path / "data")
     manifest = manifest_for(shared_data, synth)
@@ -159,6 +160,7 @@ def test_worker_killed_mid_batch_matches_serial(client, shared_data, tmp_path):
 
 
 # ------------------------------------------------------------------------------ resume
+@pytest.mark.slow
 def test_interrupted_batch_resumes_without_refitting(client, tmp_path):
     synth = write_synthetic(tmp_path / "data")
     manifest = {"settings": [{"dt": 1e-2}, {"dt": 1e-3}, {"dt": 1e-4}],
@@ -200,6 +202,7 @@ def test_interrupted_batch_resumes_without_refitting(client, tmp_path):
     assert third.fitted == 0 and third.skipped == 12
 
 
+@pytest.mark.slow
 def test_failed_rerun_on_request_and_changed_input_refits(client, tmp_path):
     synth = write_synthetic(tmp_path / "data")
     manifest = {"inputs": [{"path": "zero/line.csv", "dt": 0.01},
@@ -268,6 +271,7 @@ def test_plan_names_ids_and_precedence(tmp_path):
     assert not set(t.name for t in batch.plan(doc, synth)[0]) & set(names)
 
 
+@pytest.mark.slow
 def test_unreadable_input_is_a_failed_row_not_an_error(client, tmp_path):
     synth = write_synthetic(tmp_path / "data")
     (synth / "broken.csv").write_text("x,y\n1,2\n3\n")
@@ -328,6 +332,7 @@ def test_cli_bad_usage_exit_2(tmp_path, monkeypatch):
                  (re.escape('pip install ".[batch]"'), "distributed"), out)
 
 
+@pytest.mark.slow
 def test_cli_runs_on_an_existing_scheduler(client, shared_data, tmp_path):
     m = tmp_path / "m.toml"
     m.write_text(f'[defaults]\ndt = 0.02\n[[inputs]]\npath = "{shared_data}/nist/Rat4*.dat"\n')
@@ -345,6 +350,7 @@ def test_cli_runs_on_an_existing_scheduler(client, shared_data, tmp_path):
     assert r.exit_code == 0 and re.search(counts, r.stdout), r.stdout
 
 
+@pytest.mark.slow
 def test_cli_ctrl_c_exits_130_and_leaves_no_partial_file(tmp_path):
     """A real SIGINT to `ratfit batch` with its own LocalCluster (1 worker)."""
     synth = write_synthetic(tmp_path / "data")
@@ -369,3 +375,64 @@ def test_cli_ctrl_c_exits_130_and_leaves_no_partial_file(tmp_path):
     assert not leftovers(out)
     for p in out.glob("*.json"):
         assert load_fit(p).channels[0].summary["verified"]
+
+
+# ------------------------------------------------------------------------------ BRDF files
+def _cornell_manifest(shared: Path) -> dict[str, Any]:
+    return {"defaults": {"max_points": 100, "channels": ["R"]},
+            "inputs": [str(shared / "cornell" / "garnet_red.brdf"),
+                       str(shared / "cornell" / "krylon_blue.brdf")]}
+
+
+def test_a_cornell_entry_is_the_request_of_the_brdf_command(shared_data, tmp_path):
+    """Issue 25: a Cornell file in a manifest failed ("line 9: expected 1 value, got
+    19"); it is now one task per file whose request is the one `ratfit brdf fit
+    FILE --max-points 100 --channel R --jobs 1` makes (BRDF solver by default)."""
+    from ratfit.jobs import BRDFFitRequest
+
+    tasks, unreadable = batch.plan(_cornell_manifest(shared_data), base_dir=tmp_path)
+    assert not unreadable and [t.channel for t in tasks] == ["R", "R"]
+    for t in tasks:
+        req = batch.request_of(t.settings, Path(t.path))
+        # jobs=1: the batch's default (Dask runs the tasks in parallel)
+        assert req == BRDFFitRequest.from_settings(t.path, {"max_points": 100, "jobs": 1,
+                                                            "channels": ["R"]})
+        assert req.options.solver == BRDFFitRequest(t.path).options.solver
+    # every channel of the file by default: one task for all of them
+    tasks, _ = batch.plan({"inputs": [str(shared_data / "cornell" / "cayman.brdf")]})
+    assert [(t.channel, t.settings["kind"]) for t in tasks] == [("R,G,B", "brdf")]
+    assert batch.request_of(tasks[0].settings, Path(tasks[0].path)).channels == ()
+    # BRDF settings on a data file (and data settings on a BRDF file) are refused
+    with pytest.raises(InputError, match="max_points is a setting of BRDF files"):
+        batch.load_manifest({"inputs": [{"path": "a.csv", "max_points": 5}]}, base_dir=tmp_path)
+    with pytest.raises(InputError, match="monomial is a setting of data files"):
+        batch.load_manifest({"inputs": [{"path": "b.brdf", "monomial": False}]},
+                            base_dir=tmp_path)
+
+
+def test_settings_ids_of_data_entries_do_not_move():
+    """The BRDF settings are hashed only when set: ids of earlier data batches hold."""
+    base = {k: batch.DEFAULTS[k] for k in batch.DEFAULTS}
+    assert batch.settings_id(base) == batch.settings_id({**base, "kind": "data"})
+    assert batch.settings_id({**base, "kind": "brdf"}) != batch.settings_id(base)
+    assert batch.settings_id({**base, "max_points": 60}) != batch.settings_id(base)
+
+
+@pytest.mark.slow
+def test_a_batch_of_cornell_files_equals_them_fitted_one_by_one(client, shared_data, tmp_path):
+    """Same file, same options: the same coefficients."""
+    from ratfit.brdf.options import BRDFOptions
+    from ratfit.jobs import BRDFFitRequest, fit_brdf_file
+
+    out = tmp_path / "out"
+    summary = batch.run(_cornell_manifest(shared_data), client, outdir=out)
+    assert summary.ok and len(summary.rows) == 2
+    for row in summary.rows:
+        doc = json.loads((out / row["fit_file"]).read_text())
+        alone = fit_brdf_file(BRDFFitRequest(shared_data / "cornell" / Path(row["input"]).name,
+                                             BRDFOptions(jobs=1), max_points=100,
+                                             channels=("R",))).document()
+        assert [(c["p"], c["q"]) for c in doc["channels"]] == \
+            [(c["p"], c["q"]) for c in alone["channels"]]
+        assert doc["brdf"]["parametrization"] == alone["brdf"]["parametrization"]
+        assert (row["n"], row["m"]) == (alone["channels"][0]["n"], alone["channels"][0]["m"])

@@ -25,6 +25,7 @@ def _hemi(rng, n):
     ("ward", [0.6, 0.2]),
     ("lafortune", [0.5, -0.9, 20.0]),
 ])
+@pytest.mark.slow
 def test_fit_recovers_parameters(spec, theta):
     rng = np.random.default_rng(1)
     L, V = _hemi(rng, 1500), _hemi(rng, 1500)

@@ -8,6 +8,7 @@ import json
 from pathlib import Path
 
 import numpy as np
+import pytest
 from conftest import run_cli
 
 from ratfit.brdf.fitter import (
@@ -51,6 +52,7 @@ def test_candidates_only_for_isotropic_angle_sets() -> None:
     assert default_floor_rel(ISO) == default_floor_rel("STARK_2D") == DEFAULT_FLOOR_REL
 
 
+@pytest.mark.slow
 def test_auto_keeps_the_verified_fit_and_caps_the_second_search() -> None:
     """A lobe in cos(theta_h) is a small rational in the half-vector frame and has no
     fit up to 40 coefficients in (theta_v, theta_l, dphi)."""
@@ -78,6 +80,7 @@ def test_auto_keeps_the_verified_fit_and_caps_the_second_search() -> None:
     assert b["skipped"] and b["verified"] is None and b["floor_rel"] == DEFAULT_FLOOR_REL
 
 
+@pytest.mark.slow
 def test_cli_default_fit_of_cayman_is_in_the_half_vector_frame(shared_data: Path,
                                                                tmp_path: Path) -> None:
     """cayman (mirror-like, peak 737, most samples below 1e-3): about 40 coefficients
@@ -115,6 +118,7 @@ def test_cli_default_fit_of_cayman_is_in_the_half_vector_frame(shared_data: Path
             assert rat[key] < ggx[key], (ch, key, rat[key], ggx[key])
 
 
+@pytest.mark.slow
 def test_a_named_parametrization_is_kept(shared_data: Path, tmp_path: Path) -> None:
     r = run_cli("brdf", "fit", shared_data / "cornell" / "mystique.brdf", "--param", ISO,
                 "--json", "--max-total", "16", "--max-points", "300")

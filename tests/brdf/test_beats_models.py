@@ -6,6 +6,7 @@ from __future__ import annotations
 from pathlib import Path
 
 import numpy as np
+import pytest
 
 from ratfit.brdf.analytic_models import Model, fit_model
 from ratfit.brdf.fitter import (
@@ -20,6 +21,7 @@ from ratfit.brdf.io import brdf_dataset
 from ratfit.brdf.parametrizations import get_parametrization
 
 
+@pytest.mark.slow
 def test_default_fit_of_acryl_blue_beats_lambert_ggx(shared_data: Path) -> None:
     path = shared_data / "cornell" / "acryl_blue.brdf"
     iso = "ISOTROPIC_TV_TL_DPHI"  # what `ratfit brdf fit` reads Cornell's CARTESIAN as
@@ -49,6 +51,7 @@ def test_default_fit_of_acryl_blue_beats_lambert_ggx(shared_data: Path) -> None:
     assert all(8 <= r.total <= 40 for r in fitter.results_)
 
 
+@pytest.mark.slow
 def test_default_width_follows_what_the_data_needs(shared_data: Path) -> None:
     from ratfit.brdf.fitter import DEFAULT_DT, default_dt, prepare_values
 
@@ -65,6 +68,7 @@ def test_default_width_follows_what_the_data_needs(shared_data: Path) -> None:
     assert (1 + dt) * 1.0 >= (1 - dt) * 1.5
 
 
+@pytest.mark.slow
 def test_polish_meets_the_band_on_a_specular_peak(shared_data: Path) -> None:
     """mystique G in the half-vector frame: q spans four decades over the data, so
     the polish QP (in whitened coordinates) met an active band row only to the
@@ -79,6 +83,7 @@ def test_polish_meets_the_band_on_a_specular_peak(shared_data: Path) -> None:
     assert float(np.sqrt(np.mean((r - seg.center[:, 0]) ** 2))) < 0.15
 
 
+@pytest.mark.slow
 def test_polish_settles_when_q_spans_six_decades(shared_data: Path) -> None:
     """mystique G at a 0.05 % floor: q of the (3, 5) fit spans six decades over the
     data; rows met to rounding used to be 'missed' forever (30 rounds, no polish,
@@ -94,6 +99,7 @@ def test_polish_settles_when_q_spans_six_decades(shared_data: Path) -> None:
     assert float(np.sqrt(np.mean((r - seg.center[:, 0]) ** 2))) < 0.05
 
 
+@pytest.mark.slow
 def test_a_rejected_candidate_is_solved_again_before_it_is_repaired(shared_data: Path) -> None:
     """mystique B, default widths: the (1, 6) candidate meets every segment but its q
     changes sign between the samples. The repair (a least-squares fit under the
@@ -113,6 +119,7 @@ def test_a_rejected_candidate_is_solved_again_before_it_is_repaired(shared_data:
     assert float(np.sqrt(np.mean((r - seg.center[:, 0]) ** 2))) < 0.1
 
 
+@pytest.mark.slow
 def test_polish_falls_back_to_the_cone_program(shared_data: Path) -> None:
     """mystique at a 0.05 % floor, all three channels: G's (4, 5) fit has q over six
     decades and DAQP called every cut-off of its whitened polish QP infeasible, with

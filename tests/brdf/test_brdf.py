@@ -65,6 +65,7 @@ def merl_file(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, np.ndarra
 
 
 # ---------------------------------------------------------------------------- MERL
+@pytest.mark.slow
 def test_merl_round_trip(merl_file: tuple[Path, np.ndarray]) -> None:
     path, table = merl_file
     assert path.stat().st_size == 12 + 3 * 8 * int(np.prod(MERL_SHAPE))
@@ -84,6 +85,7 @@ def test_merl_round_trip(merl_file: tuple[Path, np.ndarray]) -> None:
     assert s.coords.shape == (int(ok.sum()), 3) and s.coords[:, 2].max() < np.pi
 
 
+@pytest.mark.slow
 def test_merl_bad_files(tmp_path: Path, merl_file: tuple[Path, np.ndarray]) -> None:
     data = merl_file[0].read_bytes()
     short = tmp_path / "short.binary"
@@ -103,6 +105,7 @@ def test_merl_bad_files(tmp_path: Path, merl_file: tuple[Path, np.ndarray]) -> N
     assert not out.exists()
 
 
+@pytest.mark.slow
 def test_merl_fit_subsample(merl_file: tuple[Path, np.ndarray]) -> None:
     """A 3-channel 3-D fit of MERL samples; evaluation on directions meets the data."""
     ds = brdf_dataset(merl_file[0], "COS_TH_TD_PD", max_points=3000)
@@ -149,6 +152,7 @@ def test_alta_binary_matches_text(shared_data: Path) -> None:
     assert np.allclose(b.x, t.x, atol=1e-15) and np.allclose(b.y, t.y, atol=1e-15)
 
 
+@pytest.mark.slow
 def test_alta_function_and_data_writers(tmp_path: Path) -> None:
     rng = np.random.default_rng(0)
     L = rng.normal(size=(400, 3))
@@ -268,6 +272,7 @@ def _synthetic_alta(tmp_path: Path, n: int = 600) -> Path:
     return p
 
 
+@pytest.mark.slow
 def test_cli_fit_eval_round_trip(tmp_path: Path) -> None:
     data = _synthetic_alta(tmp_path)
     fit = tmp_path / "fit.json"
@@ -309,6 +314,7 @@ def test_cli_fit_eval_round_trip(tmp_path: Path) -> None:
     assert m["y0"]["rmse"] <= 0.1 * ds.y[:, 0].max() and "cos_rmse" in m["y0"]
 
 
+@pytest.mark.slow
 def test_cli_eval_bad_directions(tmp_path: Path) -> None:
     data = _synthetic_alta(tmp_path, 200)
     fit = tmp_path / "fit.json"
@@ -381,6 +387,7 @@ def test_pole_check_only_on_valid_configurations() -> None:
     assert not fitter._verify(rf, bad, 0).verified
 
 
+@pytest.mark.slow
 def test_positive_q_rows_and_fit() -> None:
     """With positive_q the QP itself keeps q > 0 on the valid grid: its extra rows are
     q(g)/|psi(g)|, consistent with residuals(), and the fit verifies."""
@@ -394,7 +401,7 @@ def test_positive_q_rows_and_fit() -> None:
     fitter = BRDFFitter(max_total=30)
     fitter.parametrization, fitter.positive_q = "STARK_2D", True
     seg = Segments.from_relative(x, y[:, 0], 0.05)
-    system = fitter._split_system(fitter._validate(seg), seg, 0, 4, 4)
+    system = fitter._split_system(fitter.prepare(seg), seg, 0, 4, 4)
     assert system is not None and system.n_rows > 2 * seg.n_points
     c = rng.normal(size=8)
     assert np.allclose(system.rows(4, 4) @ c, system.residuals(4, 4, c), atol=1e-12)

@@ -98,6 +98,7 @@ def test_segments_never_allow_negative_values() -> None:
         nonnegative_segments(Segments.from_bounds(x, np.full(10, -2.0), np.full(10, -1.0)))
 
 
+@pytest.mark.slow
 def test_fit_is_physical_where_the_data_is_sparse() -> None:
     """A lobe measured on the sparse grid: the verified fit keeps q > 0 and r >= 0 on
     the dense valid set, not only at the 125 samples."""
@@ -134,6 +135,7 @@ def test_constant_coordinate_is_dropped_and_recorded(tmp_path) -> None:
     assert np.allclose(fit.eval_coords(x)[:, 0], y[:, 0], rtol=0.06)
 
 
+@pytest.mark.slow
 def test_polish_past_the_time_limit_keeps_the_search_fit(monkeypatch) -> None:
     """A time-limited fit never waits on its polish: the search's verified fit stays,
     and the message says the polish was cut."""

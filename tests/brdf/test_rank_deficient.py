@@ -5,11 +5,13 @@ from __future__ import annotations
 from pathlib import Path
 
 import numpy as np
+import pytest
 
 from ratfit.brdf.fitter import fit_brdf
 from ratfit.brdf.io import brdf_dataset
 
 
+@pytest.mark.slow
 def test_retro_own_parametrization_is_decided_not_lost_in_rounding(shared_data: Path) -> None:
     ds = brdf_dataset(shared_data / "alta" / "retro-3M-jaune.dat", None)
     assert ds.meta["param_in"] == "ISOTROPIC_TL_TV_PROJ_DPHI"
@@ -24,6 +26,7 @@ def test_retro_own_parametrization_is_decided_not_lost_in_rounding(shared_data: 
     assert np.isfinite(res.delta)
 
 
+@pytest.mark.slow
 def test_retro_at_alta_width_has_no_22_term_polynomial_fit(shared_data: Path) -> None:
     """The issue's "a 22-term Legendre numerator and a constant denominator fits it"
     does not hold: proved in exact arithmetic, and HiGHS agrees by a wide margin."""

@@ -20,14 +20,13 @@ def _exr(shared_data: Path, points: int):
     return brdf_dataset(path, None, channels=["B"], max_points=points)
 
 
+@pytest.mark.slow
 def test_warm_start_and_subset_bases_give_the_cold_answer(shared_data: Path,
                                                           monkeypatch) -> None:
     ds = _exr(shared_data, 800)
     cold_fitter = fit_brdf  # same call, speedups switched off below
-    monkeypatch.setattr(RationalFitter, "_warm_start", False)
     monkeypatch.setattr(qp, "BASIS_POINTS", 10**9)
-    cold, seg, _ = cold_fitter(ds, dt=0.22, jobs=1)
-    monkeypatch.setattr(RationalFitter, "_warm_start", True)
+    cold, seg, _ = cold_fitter(ds, dt=0.22, jobs=1, warm_start=False)
     # 800 points > 4 x 160: bases on 160 spread points, rows elsewhere on demand
     monkeypatch.setattr(qp, "BASIS_POINTS", 160)
     warm, _, _ = fit_brdf(ds, dt=0.22, jobs=1)
@@ -41,6 +40,7 @@ def test_warm_start_and_subset_bases_give_the_cold_answer(shared_data: Path,
     assert w.verification.n_points == 800 and w.verification.max_violation == 0.0
 
 
+@pytest.mark.slow
 def test_subset_fit_says_so_in_its_status(shared_data: Path) -> None:
     """--max-points: the status is "verified on a subset of K of N samples", never
     plain "verified", in the table, the result's message and the JSON."""
@@ -75,6 +75,7 @@ def test_subset_fit_says_so_in_its_status(shared_data: Path) -> None:
     assert meta["verified_on"] == "a random subset of 300 of 262144 samples"
 
 
+@pytest.mark.slow
 def test_channels_side_by_side_give_each_channel_its_own_answer(shared_data: Path,
                                                                 monkeypatch) -> None:
     """Large multi-channel data is searched a channel per thread (splits one at a
@@ -125,10 +126,13 @@ def test_an_interrupted_channel_thread_stops_the_others() -> None:
     x = np.linspace(0.0, 1.0, 50)
     seg = Segments.from_widths(x, np.exp(x), dt=0.01)
     fitter = RationalFitter(jobs=1)
-    fitter._cancel = threading.Event()
-    run = SearchEngine(fitter, PolynomialSpace("legendre", [[0.0, 1.0]]), seg, 0)
+    space = fitter.prepare(seg)
+    assert space.domain.tolist() == PolynomialSpace("legendre", [[0.0, 1.0]]).domain.tolist()
+    cancel = threading.Event()
+    run = SearchEngine(fitter.options_, fitter.search_parts(space, seg), space, seg, 0,
+                       cancel=cancel)
     run.test_many([(3, 1)])  # runs while not cancelled
     assert (3, 1) in run.cache
-    fitter._cancel.set()
+    cancel.set()
     with pytest.raises(KeyboardInterrupt):
         run.test_many([(4, 2)])

@@ -8,6 +8,7 @@ import json
 from pathlib import Path
 
 import numpy as np
+import pytest
 from conftest import run_cli
 
 from ratfit.brdf.fitter import (
@@ -39,6 +40,7 @@ def test_widened_dt_steps() -> None:
     assert widened_dt(0.63) == widened_dt(0.8) == MAX_DEFAULT_DT == 0.9
 
 
+@pytest.mark.slow
 def test_no_candidate_at_the_default_widens_until_one_fits() -> None:
     x, y = _checkerboard()
     assert default_dt(x, y[:, None]) == 0.05
@@ -59,6 +61,7 @@ def test_no_candidate_at_the_default_widens_until_one_fits() -> None:
     assert np.all((v >= seg.lo[:, 0]) & (v <= seg.hi[:, 0]))
 
 
+@pytest.mark.slow
 def test_given_widths_or_size_bounds_are_never_widened() -> None:
     x, y = _checkerboard()
     ds = Dataset(x, y[:, None], None, None, ("th", "td"), ("R",), {"param_in": PARAM})
@@ -69,6 +72,7 @@ def test_given_widths_or_size_bounds_are_never_widened() -> None:
         assert "widened_from" not in meta["segments"]
 
 
+@pytest.mark.slow
 def test_cli_prints_and_records_the_widening(tmp_path: Path) -> None:
     x, y = _checkerboard()
     rows = "\n".join(f"{a:.17g} {b:.17g} {v:.17g}" for (a, b), v in zip(x, y, strict=True))
@@ -85,6 +89,7 @@ def test_cli_prints_and_records_the_widening(tmp_path: Path) -> None:
     assert saved["dt"] == 0.18 and saved["widened_from"] == [0.05, 0.08, 0.12]
 
 
+@pytest.mark.slow
 def test_orange_tape_dense_in_its_own_angles(shared_data: Path, tmp_path: Path) -> None:
     """ALTA's retro-orange-tape-dense.dat (79 707 samples) in its own angles: its
     default width 0.56 has no candidate up to 100 coefficients; widened to 0.84, a
@@ -109,6 +114,7 @@ def test_orange_tape_dense_in_its_own_angles(shared_data: Path, tmp_path: Path) 
     assert np.all(v >= 0) and np.all(np.abs(v - y) <= half * (1 + 1e-9))
 
 
+@pytest.mark.slow
 def test_widening_keeps_the_narrowest_verified_parametrization() -> None:
     """Every parametrization without a candidate is widened and, as for the default
     widths, the narrower verified fit wins, whichever was tried first; a ladder stops

@@ -84,6 +84,7 @@ def test_forms_define_the_same_set_pointwise() -> None:
     assert all(agree)
 
 
+@pytest.mark.slow
 def test_forms_give_the_same_qp_verdicts_and_solutions() -> None:
     verdicts = []
     for seed in (2, 3):
@@ -217,6 +218,7 @@ def test_rational_cdf_refuses_a_non_monotone_function() -> None:
 
 
 # ------------------------------------------------------------------------------ 2-D
+@pytest.mark.slow
 def test_2d_marginal_and_conditionals() -> None:
     """f(x0, x1) = (1 + 2 x0) (a + 1) x1^a with a = 1 + 3 x0: the marginal of x0 has
     CDF (x0 + x0^2) / 2 and x1 | x0 has CDF x1^(a + 1)."""
@@ -378,6 +380,7 @@ def test_cli_bad_input(tmp_path: Path, name, content, args, pattern) -> None:
     _assert_bad(cli("cdf", src, "-o", out, *args), pattern, out)
 
 
+@pytest.mark.slow
 def test_cli_demo_cdf(tmp_path: Path) -> None:
     r = cli("demo", "cdf", "-o", tmp_path, "--json")
     assert r.exit_code == 0, r.output

@@ -780,6 +780,7 @@ def test_subprocess_bad_input_no_traceback(tmp_path: Path) -> None:
     assert_not_written(out)
 
 
+@pytest.mark.slow
 def test_installed_entry_point_fit_json(nist_fits: dict, tmp_path: Path) -> None:
     case = nist_fits["MGH09"]
     out = tmp_path / "fresh" / "mgh09.json"
@@ -841,6 +842,7 @@ def test_json_output_is_one_strict_object(nist_fits: dict, addendum_csv: Path) -
 
 
 # ------------------------------------------------------------------------------- demo
+@pytest.mark.slow
 def test_demo_addendum_table_matches_paper(demo_run: dict) -> None:
     res: Result = demo_run["result"]
     assert_no_crash(res)
@@ -857,6 +859,7 @@ def test_demo_addendum_table_matches_paper(demo_run: dict) -> None:
         assert b["poles_in_domain"] == 0, basis
 
 
+@pytest.mark.slow
 def test_demo_addendum_minimal_total(demo_run: dict, addendum_csv: Path) -> None:
     doc = strict_json(demo_run["result"].stdout)
     mn = doc["minimal"]
@@ -872,6 +875,7 @@ def test_demo_addendum_minimal_total(demo_run: dict, addendum_csv: Path) -> None
     assert strict_json(res.stdout)["verified"] is False
 
 
+@pytest.mark.slow
 def test_demo_addendum_figures(demo_run: dict) -> None:
     outdir: Path = demo_run["outdir"]
     doc = strict_json(demo_run["result"].stdout)
@@ -886,6 +890,7 @@ def test_demo_addendum_figures(demo_run: dict) -> None:
 
 
 @pytest.mark.skipif("clarabel" not in available_solvers(), reason="clarabel not installed")
+@pytest.mark.slow
 def test_demo_addendum_clarabel(demo_run: dict, tmp_path: Path) -> None:
     res = cli("demo", "addendum", "-o", tmp_path / "figs", "--json", "--solver", "clarabel")
     assert_no_crash(res)

@@ -6,12 +6,15 @@ from __future__ import annotations
 import importlib
 import time
 
+import pytest
+
 from ratfit.core.qp import Attempt
 
 # the module (ratfit.cli.main is also the name of the click group)
 cli_main = importlib.import_module("ratfit.cli.main")
 
 
+@pytest.mark.slow
 def test_progress_lines_while_nothing_reports(monkeypatch, capsys) -> None:
     monkeypatch.setattr(cli_main, "PROGRESS_EVERY", 0.2)
     cb, stop = cli_main._progress(True)  # pytest's stderr is not a terminal

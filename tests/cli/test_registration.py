@@ -15,6 +15,7 @@ FIRST_IMPORTS = ["ratfit.cli.brdf", "ratfit.cli.export", "ratfit.cli.cdf", "ratf
 
 
 @pytest.mark.parametrize("first", FIRST_IMPORTS)
+@pytest.mark.slow
 def test_all_commands_registered_in_any_import_order(first: str) -> None:
     code = (f"import importlib, json; importlib.import_module({first!r}); "
             "from ratfit.cli import main; "

@@ -105,6 +105,7 @@ def test_weighted_formulation_has_a_margin_of_the_segment_width():
     assert ver.verified and ver.min_margin > 0
 
 
+@pytest.mark.slow
 def test_seed_function_10_percent_total_at_most_35():
     r = RationalFitter().fit(seed_segments(0.10)).result_
     assert r.success and r.total <= 35
@@ -112,6 +113,7 @@ def test_seed_function_10_percent_total_at_most_35():
     assert r.verification.max_violation == 0 and r.verification.poles_in_domain == 0
 
 
+@pytest.mark.slow
 def test_seed_function_1_percent_total_at_most_60():
     r = RationalFitter(min_total=20).fit(seed_segments(0.01)).result_
     assert r.success and r.total <= 60
@@ -126,6 +128,7 @@ def test_known_19_14_fit_is_found_at_10_percent():
     assert r.success and r.verification.max_violation == 0
 
 
+@pytest.mark.slow
 def test_fit_file_round_trip_keeps_the_recurrence(tmp_path):
     seg = seed_segments(0.05, points=300)
     res = RationalFitter().fit(seg).results_
@@ -170,6 +173,7 @@ def test_more_coefficients_than_points_is_answered_by_interpolation(shared_data)
 
 
 # -- between the samples -----------------------------------------------------------------------
+@pytest.mark.slow
 def test_dense_check_and_constraint_generation():
     x = np.linspace(-3, 12, 120)
     seg = ratfit.Segments.from_relative(x, addendum_function(x), 0.1)

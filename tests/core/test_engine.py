@@ -127,6 +127,7 @@ def test_fixed_split_20_20_all_bases_verified():
         assert r.n == 20 and r.m == 20
 
 
+@pytest.mark.slow
 def test_demo_minimal_total_below_paper_and_verified():
     seg = addendum_segments()
     r = ratfit.fit(seg)

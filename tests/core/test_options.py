@@ -110,3 +110,92 @@ def test_settings_id_ignores_a_new_key_at_its_default() -> None:
     assert settings_id(base) == settings_id({**base, "formulation": "auto"})
     assert settings_id(base) != settings_id({**base, "formulation": "basis"})
     assert settings_id(base) == settings_id({**base, "jobs": 7})
+    assert settings_id(base) == settings_id({**base, "warm_start": False})
+
+
+# ------------------------------------------------------------------ checked options objects
+def _brdf_seg() -> Segments:
+    x = np.linspace(0.0, 1.0, 30)
+    return Segments.from_relative(x, 1.0 + x, 0.1)
+
+
+@pytest.mark.parametrize(("params", "message"), [
+    (dict(polish="no"), "polish must be true or false, got .no."),
+    (dict(physical=1), "physical must be true or false"),
+    (dict(positive_q="yes"), "positive_q must be true or false"),
+    (dict(parametrization="NO_SUCH"), "unknown parametrization 'NO_SUCH'"),
+    (dict(used_coords=[0, 0]), "used_coords must be distinct"),
+    (dict(basis="nope"), "unknown basis 'nope'"),
+])
+def test_brdf_fitter_options_are_checked_like_the_base_ones(params: dict, message: str) -> None:
+    from ratfit.brdf import BRDFFitter
+
+    with pytest.raises(InputError, match=message):
+        BRDFFitter(**params).fit(_brdf_seg())
+
+
+@pytest.mark.parametrize(("params", "message"), [
+    (dict(form="three-row"), "unknown monotone form 'three-row'"),
+    (dict(grid=-1), "grid must be an integer >= 0"),
+    (dict(grid=True), "grid must be an integer >= 0"),
+    (dict(check_points=1), "check_points must be an integer >= 2"),
+    (dict(formulation="arnoldi"), "has no derivative rows"),
+    (dict(solver="nope"), "unknown solver 'nope'"),
+])
+def test_monotone_fitter_options_are_checked_like_the_base_ones(params: dict,
+                                                                message: str) -> None:
+    from ratfit.cdf import MonotoneFitter
+
+    x = np.linspace(0.0, 1.0, 30)
+    with pytest.raises(InputError, match=message):
+        MonotoneFitter(**params).fit(Segments.from_absolute(x, x, 0.01))
+
+
+def test_each_estimator_spec_extends_the_base_spec() -> None:
+    from ratfit.brdf.fitter import BRDFFitter
+    from ratfit.brdf.options import BRDF_OPTIONS, BRDF_SOLVER, BRDFOptions
+    from ratfit.cdf.monotone import MONOTONE_OPTIONS, MonotoneFitter, MonotoneOptions
+    from ratfit.core.options import FitOptions
+
+    for spec, cls, est in ((BRDF_OPTIONS, BRDFOptions, BRDFFitter),
+                           (MONOTONE_OPTIONS, MonotoneOptions, MonotoneFitter)):
+        assert list(spec)[: len(FIT_OPTIONS)] == list(FIT_OPTIONS)
+        assert issubclass(cls, FitOptions) and cls.SPEC is spec
+        assert est.options_type is cls
+        # every constructor parameter is a checked option, with the same default
+        assert est().get_params() == {k: o.default for k, o in spec.items()}
+    assert BRDF_OPTIONS["solver"].default == BRDF_SOLVER == BRDFOptions().solver
+    assert MonotoneOptions().formulation == "basis"
+    # names are normalised once, at the seam
+    assert BRDFOptions(parametrization="rusin_th_td_pd").parametrization == "RUSIN_TH_TD_PD"
+    assert FitOptions(domain=[[0, 1]]).domain == ((0.0, 1.0),)
+
+
+def test_options_objects_are_checked_whenever_made() -> None:
+    from dataclasses import replace
+
+    from ratfit.core.options import FitOptions
+
+    opts = FitOptions(time_limit=3)
+    assert opts.time_limit == 3.0 and isinstance(opts.time_limit, float)
+    with pytest.raises(InputError, match="give both n and m"):
+        replace(opts, n=4)
+    with pytest.raises(InputError, match="entry 3: unknown strategy 'fast'"):
+        FitOptions.from_params({"strategy": "fast"}, where="entry 3")
+    with pytest.raises(InputError, match="entry 3: n/m and total are exclusive"):
+        FitOptions.from_params({"n": 2, "m": 2, "total": 4}, where="entry 3")
+    assert opts.changed() == {"time_limit": 3.0}
+
+
+def test_the_engine_takes_options_and_parts_not_the_fitter() -> None:
+    """The search engine's signature: checked options, the parts, the data; and a
+    fitter extends the search through the one public hook ``search_parts``."""
+    from ratfit.fitting.search import SearchEngine
+
+    sig = list(inspect.signature(SearchEngine.__init__).parameters)
+    assert sig[:6] == ["self", "options", "parts", "space", "seg", "j"]
+    for cls_path in ("ratfit.brdf.fitter.BRDFFitter", "ratfit.cdf.monotone.MonotoneFitter"):
+        mod, _, name = cls_path.rpartition(".")
+        cls = getattr(__import__(mod, fromlist=[name]), name)
+        assert "search_parts" in vars(cls)
+        assert not {"_search_parts", "_resolved_active_set"} & set(vars(cls))

@@ -29,6 +29,8 @@ ENTRY_POINTS = [
     "ratfit.cdf.fit_cdf",
     "ratfit.core.segments.Segments.from_widths",
     "ratfit.core.estimator.Estimator",
+    "ratfit.core.options.FitOptions",
+    "ratfit.jobs.fit_file",
 ]
 PUBLIC = [f"ratfit.{name}" for name in ratfit.__all__
           if name not in ("__version__", "FAMILIES")] + ENTRY_POINTS
@@ -51,6 +53,9 @@ def test_readme_python_section_runs_as_written(tmp_path: Path, monkeypatch) -> N
     res = ns["res"]
     assert res.success and res.verification.max_violation == 0.0
     assert ns["r"] is ns["fitter"].rational_
+    report = ns["report"]
+    assert report.success and (report.results[0].n, report.results[0].m) == (1, 2)
+    assert (tmp_path / "pole.json").is_file()
 
 
 def _resolve(dotted: str):

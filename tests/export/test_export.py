@@ -131,6 +131,7 @@ def _close(got, ref):
     np.testing.assert_allclose(got, ref, rtol=RTOL, atol=RTOL * scale * 1e-2)
 
 
+@pytest.mark.slow
 def test_auto_form_choice(fits):
     assert [f.form for f in plan_forms(fits["1d"])] == ["horner", "horner"]
     (f,) = plan_forms(fits["shifted"])
@@ -145,6 +146,7 @@ CASES = [(n, f) for n in ("1d", "shifted", "2d") for f in ("auto", "clenshaw", "
 CASES += [("seed", "auto"), ("seed", "recurrence"), ("arn2d", "auto"), ("arn2d", "recurrence")]
 
 
+@pytest.mark.slow
 def test_arnoldi_fit_exports_its_recurrence_when_conversions_lose_digits(fits):
     (f,) = plan_forms(fits["seed"])
     assert f.form == "recurrence"  # +-1 % seed fit: Legendre conversion loses ~1e-5
@@ -152,6 +154,7 @@ def test_arnoldi_fit_exports_its_recurrence_when_conversions_lose_digits(fits):
 
 
 @pytest.mark.parametrize("name,form", CASES)
+@pytest.mark.slow
 def test_c_matches_python(fits, tmp_path, name, form):
     saved = fits[name]
     res = export_source(saved, "c", form=form)
@@ -307,6 +310,7 @@ _PAYLOADS = [
 
 
 @pytest.mark.parametrize("lang", ["python", "c", "glsl"])
+@pytest.mark.slow
 def test_text_from_a_fit_file_never_becomes_code(fits, tmp_path, monkeypatch, lang):
     """Hostile file and channel names reach the generated source only as inert text: the
     source compiles, every comment line stays one line, and running it evaluates the fit and

@@ -4,11 +4,13 @@ is the most expensive test of a big search. The walk below still proves the mini
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
 from ratfit.core.segments import Segments
 from ratfit.fitting.search import RationalFitter
 
 
+@pytest.mark.slow
 def test_gallop_steps_grow_by_half_and_the_answer_is_the_exhaustive_one() -> None:
     x = np.linspace(-1.0, 1.0, 400)
     seg = Segments.from_relative(x, np.exp(np.sin(4 * x)) / (1.2 + x), 1e-3)

@@ -27,7 +27,7 @@ def seed_seg() -> Segments:
 
 
 def _space(seg: Segments):
-    return RationalFitter()._validate(seg)
+    return RationalFitter().prepare(seg)
 
 
 def test_certificate_proves_small_sizes_infeasible(seed_seg: Segments) -> None:

@@ -75,6 +75,7 @@ def tan_segments(frac):
 
 # ------------------------------------------------------------------ poles inside the interval
 @pytest.mark.parametrize("frac", [0.1, 0.01])
+@pytest.mark.slow
 def test_tan_minimal_pole_free_total_matches_lp(frac):
     x, y, seg = tan_segments(frac)
     res = fit(seg, max_total=30)
@@ -110,10 +111,11 @@ def test_pole_free_in_2d_on_the_domain_box():
         assert res.history[-1]["pole_cuts"] > 0
         assert_pole_free_fit(res, seg)
         plain = RationalFitter(n=7, m=11, formulation=formulation)
-        space = plain._validate(seg)
-        parts = plain._search_parts(space, seg)
-        run = SearchEngine(plain, space, seg, 0,
-                           SearchParts(parts.systems, parts.verifier, pole_free=False))
+        space = plain.prepare(seg)
+        parts = plain.search_parts(space, seg)
+        run = SearchEngine(plain.options_,
+                           SearchParts(parts.systems, parts.verifier, pole_free=False),
+                           space, seg, 0)
         run.fixed(7, 11)
         ver = run.cache[(7, 11)][2]
         assert ver is not None and ver.denominator_sign_changes  # without the q rows
@@ -157,6 +159,7 @@ def test_kirby2_tolerance_bisects_on_pole_free_feasibility(kirby2):
 
 
 # ------------------------------------------------------------------ the split rule
+@pytest.mark.slow
 def test_kirby2_min_m_split_matches_exhaustive_and_jobs(kirby2):
     seg = Segments.from_relative(kirby2.x, kirby2.y[:, 0], 0.01)
     one = fit(seg, jobs=1)
@@ -218,6 +221,7 @@ def test_shared_denominator_is_pole_free_where_the_data_have_poles():
 # ------------------------------------------------------------------ min-m against exhaustive
 @settings(max_examples=8, deadline=None)
 @given(st.floats(1.05, 2.0), st.floats(-0.9, 0.9), st.sampled_from([0.05, 0.01, 0.002]))
+@pytest.mark.slow
 def test_staircase_min_m_equals_exhaustive(a, b, dt):
     """The staircase's default split is the exhaustive search's: the same minimal
     total and, among its feasible splits, the fewest denominator coefficients."""

@@ -7,6 +7,7 @@ import dataclasses
 from collections import Counter
 
 import numpy as np
+import pytest
 
 from ratfit.core.segments import Segments
 from ratfit.fitting.search import RationalFitter, verify_channel
@@ -18,8 +19,8 @@ class _FirstCandidateRejected(RationalFitter):
 
     regenerate = 2
 
-    def _search_parts(self, space, seg):
-        parts = super()._search_parts(space, seg)
+    def search_parts(self, space, seg):
+        parts = super().search_parts(space, seg)
         if not hasattr(self, "calls"):  # fit() asks for the parts again at the end
             self.calls: Counter = Counter()
             self.points = 0
@@ -51,6 +52,7 @@ def test_rejected_candidate_is_solved_again_and_the_answer_is_unchanged() -> Non
     assert f.calls[(res.n, res.m)] == 2  # rejected once, verified when solved again
 
 
+@pytest.mark.slow
 def test_without_solving_again_every_split_stays_rejected() -> None:
     f = _FirstCandidateRejected(jobs=1)
     f.regenerate = 0

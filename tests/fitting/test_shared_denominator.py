@@ -29,6 +29,7 @@ def _runge_channels(points: int = 200) -> tuple[np.ndarray, np.ndarray]:
     return x, y
 
 
+@pytest.mark.slow
 def test_common_denominator_is_found_once() -> None:
     x, y = _runge_channels()
     seg = Segments.from_relative(x, y, 1e-3, names=("a", "b", "c"))
@@ -52,7 +53,7 @@ def test_common_denominator_is_found_once() -> None:
 def test_system_rows_match_residuals_and_sk_guess() -> None:
     x, y = _runge_channels(80)
     seg = Segments.from_relative(x, y, 1e-2)
-    space = RationalFitter()._validate(seg)
+    space = RationalFitter().prepare(seg)
     q0 = shared_sk_denominator(space, seg, (1, 2, 3), 3)
     assert q0 is not None
     q = 1 + 25 * x**2
@@ -79,6 +80,7 @@ def cornell_slice(shared_data: Path) -> Segments:
     return Segments(x, np.minimum(rel.lo, ab.lo), np.maximum(rel.hi, ab.hi), y, ds.output_names)
 
 
+@pytest.mark.slow
 def test_cornell_rgb_shared_beats_independent(cornell_slice: Segments) -> None:
     seg = cornell_slice
     indep = RationalFitter(max_total=30).fit(seg)
@@ -92,6 +94,7 @@ def test_cornell_rgb_shared_beats_independent(cornell_slice: Segments) -> None:
         assert verify(r.rational, seg, channel=j).verified
 
 
+@pytest.mark.slow
 def test_cli_shared_denominator(tmp_path: Path) -> None:
     x, y = _runge_channels(120)
     path = tmp_path / "rgb.csv"

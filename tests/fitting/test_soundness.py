@@ -97,7 +97,7 @@ def test_other_cross_checks_keep_the_tiny_width_fit(exact33: Segments, cross_che
 
 
 def test_no_certificate_claims_a_feasible_size(exact33: Segments) -> None:
-    space = RationalFitter()._validate(exact33)
+    space = RationalFitter().prepare(exact33)
     for form in ("arnoldi", "basis"):
         cert = certify(space, exact33, 0, 3, 3, formulation=form)
         assert not cert.checked
@@ -106,7 +106,7 @@ def test_no_certificate_claims_a_feasible_size(exact33: Segments) -> None:
 
 def test_smaller_totals_are_proved_infeasible_exactly(exact33: Segments) -> None:
     """Total 5 is impossible; the proof is re-checked here in exact arithmetic."""
-    space = RationalFitter()._validate(exact33)
+    space = RationalFitter().prepare(exact33)
     for n, m in ((2, 3), (3, 2)):
         cert = certify(space, exact33, 0, n, m, formulation="basis")
         assert cert.checked and cert.exact
@@ -173,6 +173,7 @@ def test_time_limit_stops_a_fruitless_search_without_a_claim() -> None:
     assert secs < 10.0
 
 
+@pytest.mark.slow
 def test_time_limit_stops_inside_one_split(monkeypatch) -> None:
     """The deadline is checked between the active-set rounds of one split, not only
     between splits: a single long split (here: a solver taking 0.2 s a call) stops."""
@@ -261,6 +262,7 @@ def test_one_point_near_zero_on_a_linear_grid_stays_in_x() -> None:
     assert res.success and res.rational.space.variable == "x" and res.n + res.m == 3
 
 
+@pytest.mark.slow
 def test_a_time_limited_fit_says_so_in_the_table_and_the_json(monkeypatch, tmp_path) -> None:
     """A fit found before the time limit ran out is verified, but its total is not
     shown minimal: the table's verified column says "yes*" with the reason below it,

@@ -35,6 +35,7 @@ def _check_bracket(res, x, y, n: int, m: int, rtol: float, absolute: bool = Fals
     assert cert.checked
 
 
+@pytest.mark.slow
 def test_seed_function_width_and_aaa() -> None:
     x = np.linspace(-3.0, 12.0, 300)
     y = addendum_function(x)

@@ -50,6 +50,7 @@ def test_entry_abs_width_replaces_the_defaults_dt(tmp_path: Path) -> None:
     assert tasks[0].settings["dt"] == 0.01 and tasks[0].settings["abs_width"] == 0.5
 
 
+@pytest.mark.slow
 def test_batch_script_without_main_guard_is_refused_with_the_fix(tmp_path: Path) -> None:
     _csv(tmp_path / "a.csv")
     (tmp_path / "m.toml").write_text('[defaults]\ndt = 0.05\n[[inputs]]\npath = "a.csv"\n')
@@ -73,6 +74,7 @@ def test_install_hints_work_from_a_checkout() -> None:
     assert 'pip install "ratfit[' not in readme
 
 
+@pytest.mark.slow
 def test_tool_dependent_tests_skip_outside_ci_and_fail_inside(tmp_path: Path) -> None:
     """The README's test command on a machine without glslangValidator: the GLSL tests
     are skipped with the reason; under CI (CI=true) they fail instead."""

@@ -77,6 +77,7 @@ def _data_file(tmp_path: Path, name: str, fn) -> Path:
     return path
 
 
+@pytest.mark.slow
 def test_render_fit_beside_data(rgb_fit: Path, tmp_path: Path) -> None:
     """Same camera, light, samples: the fit of a material is close to that material's data,
     far from another material's; the difference image is fit - data."""
@@ -101,6 +102,7 @@ def test_render_fit_beside_data(rgb_fit: Path, tmp_path: Path) -> None:
     assert got["other"]["rel_rmse"] > 10 * got["same"]["rel_rmse"], got
 
 
+@pytest.mark.slow
 def test_render_png_with_fit_sampling_and_progress(rgb_fit: Path, tmp_path: Path) -> None:
     pytest.importorskip("mitsuba", reason='Mitsuba 3 not installed: pip install ".[render]"')
     out = tmp_path / "f.png"

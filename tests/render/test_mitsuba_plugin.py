@@ -50,6 +50,7 @@ def _dirs(n: int, seed: int) -> tuple[np.ndarray, np.ndarray]:
     return out[0], out[1]
 
 
+@pytest.mark.slow
 def test_eval_matches_ratfit_brdf_eval(variant, rgb_fit: Path, fit_mat, fit_sampler,
                                        tmp_path: Path) -> None:
     L, V = _dirs(40, 1)
@@ -68,6 +69,7 @@ def test_eval_matches_ratfit_brdf_eval(variant, rgb_fit: Path, fit_mat, fit_samp
     assert np.allclose(got["pdf"], fit_sampler.pdf(V, L), rtol=2e-5)
 
 
+@pytest.mark.slow
 def test_plugin_samples_follow_plugin_pdf(variant, n_lanes, fit_mat, fit_sampler) -> None:
     bsdf = mb.make_bsdf(fit_mat, fit_sampler, "fit")
 
@@ -87,6 +89,7 @@ def test_plugin_samples_follow_plugin_pdf(variant, n_lanes, fit_mat, fit_sampler
         assert bins > nt * nph // 2 and p > 1e-3, (theta, p)
 
 
+@pytest.mark.slow
 def test_sample_weight_is_f_cos_over_pdf(variant, fit_mat, fit_sampler) -> None:
     bsdf = mb.make_bsdf(fit_mat, fit_sampler, "fit")
     rng = np.random.default_rng(2)
@@ -99,6 +102,7 @@ def test_sample_weight_is_f_cos_over_pdf(variant, fit_mat, fit_sampler) -> None:
 
 
 @pytest.mark.parametrize("sampling", ["fit", "cosine"])
+@pytest.mark.slow
 def test_sampled_albedo_agrees_with_quadrature(variant, n_lanes, fit_mat, fit_sampler,
                                                sampling: str) -> None:
     """Energy: E[weight] over BSDF samples is the directional albedo of ratfit.brdf.albedo.
@@ -117,6 +121,7 @@ def test_sampled_albedo_agrees_with_quadrature(variant, n_lanes, fit_mat, fit_sa
         assert np.all(np.abs(mean - a) < 4 * se + 1e-3 * a), (t, sampling, mean, a, se)
 
 
+@pytest.mark.slow
 def test_fit_sampling_has_lower_variance_than_cosine(variant, n_lanes) -> None:
     mat = AnalyticMaterial("lambert+ggx", [0.05, 1.0, 0.12, 0.04])
     s = HalfVectorSampler(**SMALL).fit(mat)
@@ -130,6 +135,7 @@ def test_fit_sampling_has_lower_variance_than_cosine(variant, n_lanes) -> None:
     assert var["fit"] < 0.2 * var["cosine"], var
 
 
+@pytest.mark.slow
 def test_white_furnace_render_is_the_albedo(variant, fit_mat, fit_sampler) -> None:
     """Sphere in a constant unit environment: every pixel is the albedo at its view angle."""
     size = 24 if variant.startswith("llvm") else 12

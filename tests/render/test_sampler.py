@@ -60,12 +60,14 @@ def chi_square(sampler, wi: np.ndarray, n: int = 100_000, nt: int = 10, nph: int
 
 
 @pytest.mark.parametrize("theta", [0.15, 0.8, 1.35])
+@pytest.mark.slow
 def test_samples_follow_the_pdf_chi_square(ggx_sampler, theta: float) -> None:
     p, bins = chi_square(ggx_sampler, _wi(theta))
     assert bins > 60
     assert p > 1e-3, f"chi-square p-value {p:.3g} at theta_i = {theta}"
 
 
+@pytest.mark.slow
 def test_a_wrong_pdf_fails_the_chi_square(ggx_sampler) -> None:
     """The test has power: a pdf off by a cosine lobe is rejected."""
 
@@ -114,6 +116,7 @@ def test_pdf_tracks_the_brdf(ggx_sampler) -> None:
     assert np.all((ratio[big] > 0.33) & (ratio[big] < 3.0)), ratio[big].min()
 
 
+@pytest.mark.slow
 def test_cosine_weight_one_is_cosine_sampling() -> None:
     s = HalfVectorSampler(cosine_weight=1.0, **SMALL).fit(AnalyticMaterial("lambert", [0.5]))
     rng = np.random.default_rng(0)

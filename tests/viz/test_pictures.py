@@ -52,6 +52,7 @@ def dense():
     return x, y, BRDFFit(saved, PARAM), doc
 
 
+@pytest.mark.slow
 def test_sphere_of_fit_matches_sphere_of_data(dense):
     x, y, bf, _ = dense
     data = pic.DataBRDF(x, y, PARAM)
@@ -73,6 +74,7 @@ def test_sphere_of_fit_matches_sphere_of_data(dense):
     assert np.max(np.abs(f - d)) > 0  # two different renderings, not the same one twice
 
 
+@pytest.mark.slow
 def test_brdf_pictures(dense, tmp_path):
     x, y, bf, _ = dense
     truth = Model(TRUTH[0])
@@ -88,6 +90,7 @@ def test_brdf_pictures(dense, tmp_path):
     _check_png(p, (360, 960))
 
 
+@pytest.mark.slow
 def test_slice_and_error_plots(dense, tmp_path):
     x, y, bf, _ = dense
     lo, hi = (1 - DT) * y, (1 + DT) * y
@@ -107,6 +110,7 @@ def _fit_and_data_files(x, y, doc, folder):
     return fit, data
 
 
+@pytest.mark.slow
 def test_cli_plot_and_report(dense, tmp_path):
     x, y, _, doc = dense
     fit, data = _fit_and_data_files(x, y, doc, tmp_path)
@@ -139,6 +143,7 @@ def test_cli_plot_and_report(dense, tmp_path):
     assert r.exit_code == 2 and "phong" in r.output and not out.exists()
 
 
+@pytest.mark.slow
 def test_drawing_leaves_the_users_matplotlib_backend_alone(tmp_path: Path) -> None:
     """A notebook's backend survives importing ratfit's plotting code and saving PNGs."""
     import subprocess
@@ -163,6 +168,7 @@ print(matplotlib.get_backend(), "matplotlib.pyplot" in sys.modules)
         assert data[:8] == b"\x89PNG\r\n\x1a\n" and len(data) > 1000, name
 
 
+@pytest.mark.slow
 def test_report_without_albedo_has_no_empty_albedo_plot(dense, tmp_path, monkeypatch):
     """Where the fit's domain leaves no incidence with a directional albedo (cayman in
     the half-vector frame), the page says so in words and shows no empty plot."""

@@ -17,6 +17,17 @@ and the fit settings::
     format = "nist"            # per-entry override (beats defaults and combinations)
     channels = [0]             # 0-based indices or names (default: every channel)
 
+    [[inputs]]
+    path = "cornell/*.brdf"    # measured BRDFs: one task per file, as `ratfit brdf fit`
+    max_points = 300           # BRDF settings: parametrization, floor_rel, cosine, clamp,
+                               # color, max_points, positive_q, polish
+
+Every task is one job request (:mod:`ratfit.jobs`): a data file's channel is a
+:class:`~ratfit.jobs.FitRequest`, a BRDF file (``kind = "brdf"``; by default a
+glob ending in .brdf, .binary, .astm or .exr, or a MERL/Cornell/ASTM/EXR
+``format``) one :class:`~ratfit.jobs.BRDFFitRequest` for the channels asked, so a
+task's fit is the one the command or the Python job gives for the same settings.
+
 An entry may also be a bare glob string, or carry its own ``settings`` list
 (replacing the global combinations). Precedence: built-in defaults < ``defaults``
 < combination < entry.
@@ -50,7 +61,6 @@ import time
 import tomllib
 import traceback
 import uuid
-import warnings
 from collections import OrderedDict
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
@@ -58,9 +68,11 @@ from pathlib import Path
 from typing import Any
 
 from ratfit._atomic import atomic_open, atomic_path
-from ratfit.core.options import FIT_OPTIONS, SEGMENT_OPTIONS, check_fit_params
+from ratfit.brdf.options import BRDF_SOLVER
+from ratfit.core.options import FIT_OPTIONS, SEGMENT_OPTIONS
 from ratfit.core.validation import check_bool, check_choice, check_int, check_width
 from ratfit.errors import InputError, RatfitError
+from ratfit.jobs import BRDFFitRequest, FitRequest
 
 __all__ = [
     "COLUMNS",
@@ -105,19 +117,32 @@ class BatchInterrupted(KeyboardInterrupt):
 # ---------------------------------------------------------------------------- settings
 # Every setting with its built-in default: the fitter's options from the one spec
 # (ratfit.core.options), the segment widths, and how an input is read. All but
-# ``jobs`` enter the settings id (``jobs`` changes how fast, not what). ``jobs``
+# ``jobs`` and ``warm_start`` enter the settings id (they change how fast, not what). ``jobs``
 # defaults to 1: Dask supplies the parallelism, threads inside each task would
 # only oversubscribe the cores.
 FIT_PARAMS = tuple(k for k in FIT_OPTIONS if k != "callback")
+# What a BRDF file's request takes besides the fit options and widths (the names of
+# ratfit.jobs.BRDFFitRequest), with their defaults.
+BRDF_SETTINGS: dict[str, Any] = {
+    "parametrization": None, "floor_rel": None, "cosine": False, "clamp": None,
+    "color": "rgb", "max_points": None, "positive_q": False, "polish": True,
+}
+KINDS = ("auto", "data", "brdf")
+# kind "auto": an entry is a BRDF file by its glob's suffix or its format
+BRDF_SUFFIXES = (".brdf", ".binary", ".astm", ".exr")
+BRDF_ONLY_FORMATS = ("merl", "cornell", "astm", "exr")
 DEFAULTS: dict[str, Any] = {
     **{k: FIT_OPTIONS[k].default for k in FIT_PARAMS}, "jobs": 1,
     **{k: o.default for k, o in SEGMENT_OPTIONS.items()},
-    "format": None, "dim": None, "monomial": True,
+    "format": None, "dim": None, "monomial": True, "kind": "auto", **BRDF_SETTINGS,
 }
-_NOT_HASHED = ("jobs",)
+# A BRDF file's settings start from the BRDF fitter's solver, as `ratfit brdf fit`.
+BRDF_DEFAULTS: dict[str, Any] = {**DEFAULTS, "solver": BRDF_SOLVER}
+_NOT_HASHED = ("jobs", "warm_start")
 # Settings added after manifests were in use: left out of the settings id while they
 # hold their default, so results of earlier runs keep their ids (and are resumed).
-_HASHED_IF_SET = ("formulation", "time_limit")
+_HASHED_IF_SET = ("formulation", "time_limit", "kind", *BRDF_SETTINGS)
+_QUIET_VALUES = {**{k: (DEFAULTS[k],) for k in _HASHED_IF_SET}, "kind": ("auto", "data")}
 ENTRY_KEYS = ("path", "channels", "settings")
 TOP_KEYS = ("inputs", "defaults", "settings")
 
@@ -134,14 +159,20 @@ def _check_setting(key: str, value: Any, where: str) -> Any:
     if key in SEGMENT_OPTIONS:
         return check_width(value, key, where=where, positive=True, below_one=key == "dt")
     if key == "format":
+        from ratfit.brdf.io import BRDF_FORMATS
         from ratfit.io.data import FORMATS
 
+        names = tuple(dict.fromkeys((*FORMATS, *BRDF_FORMATS)))
         if value is None:
             return None
         if not isinstance(value, str):
-            raise InputError(f"{where}: format must be one of {', '.join(FORMATS)}, "
+            raise InputError(f"{where}: format must be one of {', '.join(names)}, "
                              f"got {value!r}")
-        return check_choice(value.lower(), "format", FORMATS, where=where)
+        return check_choice(value.lower(), "format", names, where=where)
+    if key == "kind":
+        return check_choice(value, "kind", KINDS, where=where)
+    if key in BRDF_SETTINGS:
+        return value  # checked with the others when the request is made
     if key == "dim":
         return check_int(value, "dim", minimum=1, where=where, allow_none=True)
     if key == "monomial":
@@ -166,8 +197,44 @@ def _check_table(table: Any, where: str, allowed: tuple[str, ...]) -> dict[str, 
 
 
 def _check_combined(settings: dict[str, Any], where: str) -> None:
-    """Rules between settings (the same as the fitter's, from the one spec)."""
-    check_fit_params({k: settings[k] for k in FIT_PARAMS}, where=where)
+    """Every setting checked alone and together: the request they make is made."""
+    request_of(settings, Path(where), where=where)
+
+
+def request_of(settings: Mapping[str, Any], path: Path, *,
+               where: str | None = None) -> FitRequest | BRDFFitRequest:
+    """The job request of one task's settings (kind "data": a data file's fit, with
+    ``settings["channels"]`` its channel; kind "brdf": a BRDF file's fit)."""
+    fit = {k: settings[k] for k in FIT_PARAMS}
+    widths = {"dt": settings["dt"], "abs_width": settings["abs_width"]}
+    chans = settings.get("channels") or ()
+    if settings["kind"] == "brdf":
+        for key in ("dim", "monomial"):
+            if settings[key] != DEFAULTS[key]:
+                raise InputError(f"{where}: {key} is a setting of data files, not of BRDF files")
+        own = {k: settings[k] for k in BRDF_SETTINGS}
+        return BRDFFitRequest.from_settings(path, {**fit, **widths, **own, "channels": chans,
+                                                   "format": settings["format"]}, where=where)
+    for key, default in BRDF_SETTINGS.items():
+        if settings[key] != default:
+            raise InputError(f"{where}: {key} is a setting of BRDF files (kind = \"brdf\"), "
+                             "not of data files")
+    return FitRequest.from_settings(path, {**fit, **widths, "channels": chans,
+                                           "format": settings["format"], "dim": settings["dim"],
+                                           "monomial": settings["monomial"]}, where=where)
+
+
+def _entry_kind(pattern: str, layers: tuple[Mapping[str, Any], ...]) -> str:
+    """An entry's kind: given (the last layer that says wins), else "brdf" for a glob
+    ending in a BRDF suffix or a BRDF-only format, else "data"."""
+    kind, fmt = "auto", None
+    for layer in layers:
+        kind = layer.get("kind", kind)
+        fmt = layer.get("format", fmt)
+    if kind != "auto":
+        return str(kind)
+    brdf = Path(pattern).suffix.lower() in BRDF_SUFFIXES or fmt in BRDF_ONLY_FORMATS
+    return "brdf" if brdf else "data"
 
 
 def _check_channels(value: Any, where: str) -> tuple[int | str, ...] | None:
@@ -187,8 +254,9 @@ def _check_channels(value: Any, where: str) -> tuple[int | str, ...] | None:
 
 def settings_id(settings: Mapping[str, Any]) -> str:
     """Short hash of the settings that change a result (stable across runs and machines)."""
-    keyed = {k: settings[k] for k in sorted(DEFAULTS) if k not in _NOT_HASHED
-             and not (k in _HASHED_IF_SET and settings[k] == DEFAULTS[k])}
+    keyed = {k: settings.get(k, DEFAULTS[k]) for k in sorted(DEFAULTS) if k not in _NOT_HASHED
+             and not (k in _HASHED_IF_SET
+                      and settings.get(k, DEFAULTS[k]) in _QUIET_VALUES[k])}
     text = json.dumps(keyed, sort_keys=True, separators=(",", ":"))
     return hashlib.sha256(text.encode()).hexdigest()[:10]
 
@@ -250,9 +318,11 @@ def load_manifest(
             channels = top_channels
         own = table.pop("settings", None)
         entry_combos = _combos(own, f"{where}: settings") if own is not None else combos
+        kind = _entry_kind(pattern, (defaults, table))
         merged = []
         for j, combo in enumerate(entry_combos):
-            s = _layered(DEFAULTS, defaults, combo, table)
+            s = _layered(BRDF_DEFAULTS if kind == "brdf" else DEFAULTS, defaults, combo, table)
+            s["kind"] = kind
             _check_combined(s, where if len(entry_combos) == 1 else f"{where}, settings[{j}]")
             merged.append(s)
         paths, labels = _expand(pattern, base, where)
@@ -260,7 +330,7 @@ def load_manifest(
     return entries, base, name
 
 
-_WIDTH_KEYS = ("dt", "abs_width")
+_WIDTH_KEYS = ("dt", "abs_width", "floor_rel")
 
 
 def _layered(*layers: Mapping[str, Any]) -> dict[str, Any]:
@@ -379,40 +449,39 @@ def plan(
     options); a file that cannot be read is a "failed" row, not an error, so one
     bad file among hundreds does not stop the batch.
     """
-    from ratfit.io.data import read_data
     from ratfit.io.fitfile import file_sha256
 
     entries, base, _ = load_manifest(manifest, base_dir)
     tasks: list[Task] = []
     unreadable: list[dict[str, Any]] = []
     seen: dict[str, Task] = {}
-    cache: dict[tuple[Path, str | None, int | None], Any] = {}
+    cache: dict[tuple[Any, ...], Any] = {}
     digests: dict[Path, str] = {}
     for e in entries:
         for path, label in zip(e.paths, e.labels, strict=True):
             shown = _display(path, base)
             for s in e.combos:
                 sid = settings_id(s)
-                key = (path, s["format"], s["dim"])
+                key = (path, s["kind"], s["format"], s["dim"], s["color"])
                 if key not in cache:
                     try:
-                        cache[key] = read_data(path, fmt=s["format"], dim=s["dim"])
+                        cache[key] = _read_input(path, s)
                     except (RatfitError, OSError) as exc:
                         cache[key] = exc
                 data = cache[key]
                 if isinstance(data, Exception):
                     unreadable.append(_row(shown, "", sid, s, "failed", message=str(data)))
                     continue
-                try:
-                    data.segments(dt=s["dt"], abs_width=s["abs_width"])
-                except RatfitError as exc:
-                    raise InputError(f"{e.where}: {exc}") from None
+                if s["kind"] == "data":
+                    try:
+                        data.segments(dt=s["dt"], abs_width=s["abs_width"])
+                    except RatfitError as exc:
+                        raise InputError(f"{e.where}: {exc}") from None
                 if path not in digests:
                     digests[path] = file_sha256(path)
-                for j in _channel_indices(e, data, shown):
-                    chan = data.output_names[j]
+                for j, chan, s_task in _task_channels(e, data, shown, s):
                     name = f"{_safe(label.replace('/', '--'))}.{_safe(chan)}.{sid}"
-                    task = Task(name, shown, str(path), digests[path], chan, j, sid, s)
+                    task = Task(name, shown, str(path), digests[path], chan, j, sid, s_task)
                     prev = seen.get(name)
                     if prev is not None:
                         if prev.path != task.path:
@@ -425,6 +494,30 @@ def plan(
                     seen[name] = task
                     tasks.append(task)
     return tasks, unreadable
+
+
+def _read_input(path: Path, s: Mapping[str, Any]) -> Any:
+    """An input as its kind reads it (a BRDF file's channels after the colour conversion)."""
+    if s["kind"] == "brdf":
+        from ratfit.brdf.io import read_brdf, samples_dataset
+
+        return samples_dataset(read_brdf(path, fmt=s["format"]), None, color=s["color"])
+    from ratfit.io.data import read_data
+
+    return read_data(path, fmt=s["format"], dim=s["dim"])
+
+
+def _task_channels(e: _Entry, data: Any, shown: str, s: dict[str, Any]
+                   ) -> list[tuple[int, str, dict[str, Any]]]:
+    """(channel index, channel label, task settings) of each task of one input: one per
+    channel of a data file; one for a BRDF file's channels together (index -1), which
+    its settings name, as `ratfit brdf fit --channel` does."""
+    picked = _channel_indices(e, data, shown)
+    if s["kind"] != "brdf":
+        return [(j, data.output_names[j], s) for j in picked]
+    names = [data.output_names[j] for j in picked]
+    chosen = names if e.channels is not None else []
+    return [(-1, ",".join(names), {**s, "channels": chosen})]
 
 
 def _channel_indices(e: _Entry, data: Any, shown: str) -> list[int]:
@@ -492,36 +585,24 @@ def execute(task: Task) -> tuple[dict[str, Any], dict[str, Any] | None]:
     s = task.settings
     base = (task.input, task.channel, task.settings_id, s)
     try:
-        from ratfit.core.segments import Segments
-        from ratfit.fitting.search import RationalFitter
-        from ratfit.io.fitfile import fit_document
+        from ratfit.jobs import fit_brdf_file, fit_file
 
-        data = _dataset(task.path, s["format"], s["dim"])
-        seg = data.segments(dt=s["dt"], abs_width=s["abs_width"])
-        j = task.channel_index
-        seg = Segments(seg.x, seg.lo[:, [j]], seg.hi[:, [j]],
-                       None if seg.y is None else seg.y[:, [j]], (seg.names[j],))
-        fitter = RationalFitter(**{k: s[k] for k in FIT_PARAMS}).fit(seg)
-        r = fitter.result_
-        summ = r.summary()
-        values = {k: summ[k] for k in ("n", "m", "total", "verified", "linf", "l2",
-                                       "max_rel_error", "max_violation", "qp_solves")}
-        values["seconds"] = summ["seconds"]
-        if not r.success:
-            values["wall_seconds"] = round(time.perf_counter() - t0, 6)
-            return _row(*base, "no-fit", message=r.message, **values), None
-        notes: list[str] = []
-        mono = None
-        if s["monomial"]:
-            mono = [_monomial(r, seg, notes)]
-        doc = fit_document([r], monomial=mono, provenance={
-            "input": task.input, "input_sha256": task.input_sha256,
-            "n_points": seg.n_points, "solver": s["solver"],
-            "segments": {"dt": s["dt"], "abs_width": s["abs_width"],
-                         "explicit": s["dt"] is None and s["abs_width"] is None},
-        })
+        report: Any
+        request = request_of({**s, "channels": [task.channel_index]} if s["kind"] == "data"
+                             else s, Path(task.path))
+        if isinstance(request, BRDFFitRequest):
+            report = fit_brdf_file(request)
+        else:
+            report = fit_file(request, data=_dataset(task.path, s["format"], s["dim"]))
+        values = _row_values(report.results)
         values["wall_seconds"] = round(time.perf_counter() - t0, 6)
-        return _row(*base, "ok", message="; ".join(notes), **values), doc
+        if not report.success:
+            message = "; ".join(r.message for r in report.results if not r.success)
+            return _row(*base, "no-fit", message=message, **values), None
+        doc = report.document()
+        doc["provenance"]["input"] = task.input  # as the manifest names it
+        return _row(*base, "ok", message="; ".join(getattr(report, "messages", [])),
+                    **values), doc
     except Exception as exc:  # one task's failure is a row, never the batch's
         msg = f"{type(exc).__name__}: {exc}" if not isinstance(exc, RatfitError) else str(exc)
         if not isinstance(exc, RatfitError):
@@ -531,19 +612,25 @@ def execute(task: Task) -> tuple[dict[str, Any], dict[str, Any] | None]:
                     wall_seconds=round(time.perf_counter() - t0, 6)), None
 
 
-def _monomial(r: Any, seg: Any, notes: list[str]) -> dict[str, Any] | None:
-    from ratfit.core.monomial import to_monomial
-    from ratfit.errors import AccuracyWarning
+def _row_values(results: list[Any]) -> dict[str, Any]:
+    """A task's summary columns: its channel's, or over a BRDF file's channels the
+    total, the worst errors and the sums (n and m per channel are in the fit file)."""
+    per = [r.summary() for r in results]
+    if len(per) == 1:
+        keys = ("n", "m", "total", "verified", "linf", "l2", "max_rel_error", "max_violation",
+                "qp_solves", "seconds")
+        return {k: per[0][k] for k in keys}
 
-    try:
-        with warnings.catch_warnings(record=True) as caught:
-            warnings.simplefilter("always", AccuracyWarning)
-            mf = to_monomial(r.rational, seg.x)
-    except Exception as exc:  # an optional extra: the verified fit is kept without it
-        notes.append(f"no monomial form ({type(exc).__name__}: {exc})")
-        return None
-    notes.extend(f"monomial form: {w.message}" for w in caught)
-    return mf.to_dict()
+    def worst(key: str) -> float | None:
+        vals = [p[key] for p in per]
+        return None if any(v is None for v in vals) else max(vals)
+
+    return {"n": None, "m": None, "total": sum(p["total"] for p in per),
+            "verified": all(p["verified"] for p in per), "linf": worst("linf"),
+            "l2": worst("l2"), "max_rel_error": worst("max_rel_error"),
+            "max_violation": worst("max_violation"),
+            "qp_solves": sum(p["qp_solves"] for p in per),
+            "seconds": sum(p["seconds"] for p in per)}
 
 
 # ---------------------------------------------------------------------------- results on disk

@@ -44,7 +44,7 @@ __all__ = [
     "Lobe",
     "Model",
     "ModelFit",
-    "brdf_metrics",
+    "channel_metrics",
     "check_dirs",
     "fit_model",
     "load_model_fit",
@@ -87,7 +87,7 @@ class Geometry:
     cos_d: Array
     lv_xy: Array  # Lx Vx + Ly Vy
     lv_z: Array  # Lz Vz
-    above: Array  # both directions strictly above the horizon
+    above: NDArray[np.bool_]  # both directions strictly above the horizon
 
     @classmethod
     def from_dirs(cls, L: ArrayLike, V: ArrayLike) -> Geometry:
@@ -280,7 +280,8 @@ def _compact(names: Sequence[str]) -> list[str]:
 
 
 # ---------------------------------------------------------------------------- metrics
-def brdf_metrics(pred: ArrayLike, y: ArrayLike, cos_l: ArrayLike | None = None) -> dict[str, float]:
+def channel_metrics(pred: ArrayLike, y: ArrayLike,
+                    cos_l: ArrayLike | None = None) -> dict[str, float]:
     """One channel's metrics, as for rational fits (:func:`ratfit.brdf.fitter.brdf_metrics`)."""
     from ratfit.brdf.fitter import brdf_metrics as _metrics
 
@@ -449,7 +450,7 @@ def fit_model(
                 best, best_rmse = res.x, rmse
         assert best is not None
         params.append(best)
-        mets.append(brdf_metrics(mdl.evaluate(g, best), Y[:, j], g.cos_l))
+        mets.append(channel_metrics(mdl.evaluate(g, best), Y[:, j], g.cos_l))
     info = {"loss": loss, "weight": weight, "starts": starts, "seed": seed, "nfev": nfev,
             "seconds": time.perf_counter() - t0, "n_points": int(Y.shape[0])}
     return ModelFit(mdl, np.array(params), names, mets, info)

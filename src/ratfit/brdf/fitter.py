@@ -25,6 +25,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from ratfit.brdf.options import BRDF_SOLVER, UNKNOWN_PARAMETRIZATION, BRDFOptions
 from ratfit.brdf.parametrizations import (
     check_dirs,
     find_parametrization,
@@ -35,7 +36,6 @@ from ratfit.core.qp import ArnoldiSystem
 from ratfit.core.rational import RationalFunction
 from ratfit.core.results import FitResult
 from ratfit.core.segments import Segments
-from ratfit.core.solvers import first_available
 from ratfit.core.systems import AppendedRows, LazyRows, RowSystem, spread_indices
 from ratfit.core.threads import one_blas_thread
 from ratfit.core.validation import check_width
@@ -54,9 +54,6 @@ __all__ = ["BRDF_SOLVER", "DEFAULT_DT", "DEFAULT_FLOOR_REL", "BRDFFit", "BRDFFit
            "subset_status", "valid_grid"]
 
 Array = NDArray[np.float64]
-# DAQP first: quadprog was seen looping forever inside one call on a BRDF QP with
-# validity rows (1217 x 37, garnet_red) that DAQP solves in 6 ms.
-BRDF_SOLVER = first_available(("daqp", "quadprog"))
 # Segments when neither the command nor the file gives any: 5 % of each value, the
 # order of a gonioreflectometer's noise, with a floor of 0.2 % of the channel's
 # largest value so that the diffuse part and measured zeros stay fittable.
@@ -185,9 +182,14 @@ def resolve_widths(ds: Dataset, dt: float | None, abs_width: float | None,
     parametrization's :func:`default_floor_rel` (``defaulted`` True)."""
     if dt is None and abs_width is None and floor_rel is None and (
             ds.lo is None or ds.hi is None):
-        y = prepare_values(ds, cosine=cosine, clamp=clamp)
-        floor = default_floor_rel(str(ds.meta.get("param_in", "UNKNOWN")))
-        return default_dt(ds.x, y, floor), None, floor, True
+        # resolved once per dataset and weighting: kept in its meta (a KD-tree pass)
+        key = f"default_widths(cosine={bool(cosine)}, clamp={clamp!r})"
+        if key not in ds.meta:
+            y = prepare_values(ds, cosine=cosine, clamp=clamp)
+            floor = default_floor_rel(str(ds.meta.get("param_in", "UNKNOWN")))
+            ds.meta[key] = (default_dt(ds.x, y, floor), floor)
+        dt_default, floor = ds.meta[key]
+        return dt_default, None, floor, True
     return dt, abs_width, floor_rel, False
 
 
@@ -255,9 +257,11 @@ def fit_brdf(ds: Dataset, *, dt: float | None = None, abs_width: float | None = 
                                              cosine=cosine, clamp=clamp))
     if cosine and dropped.size:
         seg = Segments(ds.x, seg.lo, seg.hi, seg.y, seg.names)
-    fitter = BRDFFitter(parametrization=str(ds.meta.get("param_in", "UNKNOWN")),
-                        positive_q=bool(positive_q), **fitter_params)
-    fitter._keep = None if not dropped.size else keep
+    known = find_parametrization(str(ds.meta.get("param_in", UNKNOWN_PARAMETRIZATION)))
+    fitter = BRDFFitter(parametrization=UNKNOWN_PARAMETRIZATION if known is None else known.name,
+                        positive_q=bool(positive_q),
+                        used_coords=None if not dropped.size else tuple(int(k) for k in keep),
+                        **fitter_params)
     fitter.fit(seg)
     sub = ds.meta.get("subset")
     if sub:
@@ -534,6 +538,10 @@ class BRDFFitter(RationalFitter):
         minimum-norm fit, which runs along the segments' edges. With a
         ``time_limit``, each channel's polish gets a quarter of it and keeps the
         search's fit (saying so in the message) when that runs out.
+    used_coords : tuple of int, optional
+        The coordinates of the parametrization that the segments' x holds, in
+        order (None: all); :func:`fit_brdf` drops constant ones (Cornell's
+        light lies in one plane) and says which here.
     solver : str, default "daqp"
         As for RationalFitter, but DAQP (quadprog when DAQP is not installed).
     physical : bool, default True
@@ -547,8 +555,9 @@ class BRDFFitter(RationalFitter):
 
     Attributes
     ----------
-    results_, result_, rational_, success_, segments_, space_
-        As for :class:`~ratfit.fitting.search.RationalFitter`.
+    results_, result_, rational_, success_, segments_, space_, options_
+        As for :class:`~ratfit.fitting.search.RationalFitter` (``options_`` is a
+        :class:`~ratfit.brdf.options.BRDFOptions`).
 
     Examples
     --------
@@ -557,14 +566,18 @@ class BRDFFitter(RationalFitter):
     BRDFFitter(parametrization='STARK_2D', positive_q=True, max_total=30)
     """
 
-    def __init__(self, *, parametrization: str = "UNKNOWN", positive_q: bool = False,
-                 physical: bool = True, polish: bool = True,
+    options_type = BRDFOptions
+
+    def __init__(self, *, parametrization: str = UNKNOWN_PARAMETRIZATION,
+                 positive_q: bool = False, physical: bool = True, polish: bool = True,
+                 used_coords: tuple[int, ...] | None = None,
                  solver: str = BRDF_SOLVER, **params: Any) -> None:
         super().__init__(solver=solver, **params)
         self.parametrization = parametrization
         self.positive_q = positive_q
         self.physical = physical
         self.polish = polish
+        self.used_coords = used_coords
 
     def fit(self, segments: Segments) -> BRDFFitter:
         self._shared_extra: list[Array] = []
@@ -599,7 +612,7 @@ class BRDFFitter(RationalFitter):
         assert rf is not None
         fam = rf.to_family()
         ver = verify(fam, seg, channel=j, box_check=False)
-        proof = prove_validity(fam, self.parametrization, keep=getattr(self, "_keep", None))
+        proof = prove_validity(fam, self.parametrization, keep=self.used_coords)
         self.__dict__.setdefault("_proofs", {})[id(fam)] = proof
         self._checks[id(fam)] = self._checks.get(id(rf))
         if ver.n_violations == 0 and np.isfinite(ver.linf) and proof.proved:
@@ -637,7 +650,7 @@ class BRDFFitter(RationalFitter):
         cache = getattr(self, "_conf_cache", None)
         if cache is None or cache[0] != key:
             cache = self._conf_cache = (key, configurations(
-                self.parametrization, domain, keep=getattr(self, "_keep", None),
+                self.parametrization, domain, keep=self.used_coords,
                 box_points=BOX_POINTS))
         return cache[1]
 
@@ -719,8 +732,8 @@ class BRDFFitter(RationalFitter):
                        message=f"{res.message}; least-squares polish: RMSE "
                                f"{before:.4g} -> {after:.4g} at the same size")
 
-    def _search_parts(self, space: PolynomialSpace, seg: Segments) -> SearchParts:
-        parts = super()._search_parts(space, seg)
+    def search_parts(self, space: PolynomialSpace, seg: Segments) -> SearchParts:
+        parts = super().search_parts(space, seg)
         # q > 0 is generated where a BRDF is evaluated: the valid configurations.
         # With ``physical`` or ``positive_q`` the split systems carry those rows already.
         pole_free = not (self.physical or self.positive_q)
@@ -738,7 +751,7 @@ class BRDFFitter(RationalFitter):
 
     def _split_system(self, space: PolynomialSpace, seg: Segments, j: int, n: int, m: int,
                       like: RowSystem | None = None) -> RowSystem | None:
-        system = super()._search_parts(space, seg).systems.split(space, seg, j, n, m, like=like)
+        system = super().search_parts(space, seg).systems.split(space, seg, j, n, m, like=like)
         if not (self.physical or self.positive_q) or not isinstance(system, ArnoldiSystem):
             return system
         if self.physical:
@@ -780,7 +793,7 @@ class BRDFFitter(RationalFitter):
             return ver
         if rf.space.dim == 1 and ver.poles_in_domain:
             return ver
-        keep = getattr(self, "_keep", None)
+        keep = self.used_coords
         chk = check_validity(rf, self.parametrization, keep=keep)
         if chk is None:  # nothing says what is valid: the plain box check decides
             return ver if box_checked else verify(rf, seg, channel=j)

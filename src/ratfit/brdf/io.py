@@ -39,6 +39,7 @@ __all__ = [
     "read_alta_binary",
     "read_astm",
     "read_brdf",
+    "samples_dataset",
     "read_cornell",
     "read_exr",
     "read_merl",
@@ -431,7 +432,7 @@ def read_exr(path: _PathLike, param: str = "STARK_2D") -> BRDFSamples:
                 planes[c] = v[:, :, i]
         else:
             planes[k] = v
-    order = [c for c in ("R", "G", "B") if c in planes] or sorted(planes)
+    order: list[str] = [c for c in ("R", "G", "B") if c in planes] or sorted(planes)
     h, w = planes[order[0]].shape
     p = get_parametrization(param)
     if p.dim != 2:
@@ -512,8 +513,22 @@ def brdf_dataset(
     are). ``channels`` then picks output channels by name or index.
     ``max_points`` takes a random subset (tests, quick looks).
     """
-    s = read_brdf(path, fmt=fmt)
-    src = str(path)
+    return samples_dataset(read_brdf(path, fmt=fmt), param, channels=channels, color=color,
+                           max_points=max_points, seed=seed)
+
+
+def samples_dataset(
+    s: BRDFSamples,
+    param: str | None = None,
+    *,
+    channels: Sequence[str | int] | None = None,
+    color: str = "rgb",
+    max_points: int | None = None,
+    seed: int = 0,
+) -> Dataset:
+    """Samples read once (:func:`read_brdf`) as a Dataset in parametrization ``param``:
+    :func:`brdf_dataset` without reading the file again (one read, several frames)."""
+    src = str(s.meta.get("source", "data"))
     values, names = s.values, s.channel_names
     meta = dict(s.meta)
     if meta.get("format") == "cornell":

@@ -227,7 +227,7 @@ def check_validity(rf: RationalFunction, param: str, domain: ArrayLike | None = 
 _GRIDS: dict[tuple, tuple[Array, Array]] = {}
 
 
-def _check_grid(p: Parametrization, dom: Array, cols: Array,
+def _check_grid(p: Parametrization, dom: Array, cols: NDArray[np.int64],
                 points: int) -> tuple[Array, Array]:
     """The offset grid (angles, coordinates) inside ``dom``; kept for the next
     candidate of the same fit (a search verifies many on one domain)."""
@@ -246,7 +246,7 @@ def _check_grid(p: Parametrization, dom: Array, cols: Array,
 
 def _compass(rf: RationalFunction, p: Parametrization, dom: Array, a0: Array, v0: Array,
              step: Array, sign: float, qs: float, ps: float, use_q: bool,
-             cols: Array) -> tuple[int, Array]:
+             cols: NDArray[np.int64]) -> tuple[int, Array]:
     """Lower q (or p) from each start by compass moves in angle space; returns
     (evaluations, coordinates of the non-positive values reached)."""
     b = _bounds(a0.shape[1])

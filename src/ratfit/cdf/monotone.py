@@ -35,12 +35,13 @@ from __future__ import annotations
 import math
 import threading
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, ClassVar
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from ratfit.core.bases import PolynomialSpace
+from ratfit.core.options import FIT_OPTIONS, FitOptions, Option, check_options_class, extend_spec
 from ratfit.core.rational import RationalFunction
 from ratfit.core.segments import Segments
 from ratfit.core.systems import spread_indices
@@ -50,7 +51,9 @@ from ratfit.fitting.search import RationalFitter, SearchParts, SeedSystems
 
 __all__ = [
     "DEFAULT_ABS_WIDTH",
-    "FORMS",
+    "MONOTONE_FORMS",
+    "MONOTONE_OPTIONS",
+    "MonotoneOptions",
     "CDFVerification",
     "MonotoneFitter",
     "MonotoneSystem",
@@ -67,7 +70,7 @@ __all__ = [
 ]
 
 Array = NDArray[np.float64]
-FORMS = ("two-row", "max")
+MONOTONE_FORMS = ("two-row", "max")
 DEFAULT_ABS_WIDTH = 1e-3
 # Points of the dense verification grid (at least; more for large data).
 CHECK_POINTS = 10_000
@@ -173,8 +176,9 @@ class MonotoneSystem:
     ) -> None:
         if space.dim != 1 or seg.dim != 1:
             raise InputError("monotone CDF fitting is 1-D; use fit_cdf_2d for two variables")
-        if form not in FORMS:
-            raise InputError(f"unknown monotone form {form!r}; choose one of {', '.join(FORMS)}")
+        if form not in MONOTONE_FORMS:
+            raise InputError(f"unknown monotone form {form!r}; choose one of "
+                             f"{', '.join(MONOTONE_FORMS)}")
         self.space = space
         xd = seg.x[:, 0]
         lo_d, hi_d = seg.lo[:, channel], seg.hi[:, channel]
@@ -235,7 +239,7 @@ class MonotoneSystem:
             block = self._full_block(slice(start, start + _CHUNK // 4))
             if acc is not None:
                 block = np.vstack([acc, block])
-            acc = np.linalg.qr(block, mode="r")
+            acc = np.asarray(np.linalg.qr(block, mode="r"), dtype=np.float64)
         assert acc is not None
         return acc[: 2 * self._k] if acc.shape[0] > 2 * self._k else acc
 
@@ -402,6 +406,40 @@ def verify_cdf(
 
 
 # ----------------------------------------------------------------------------- the fitter
+#: :class:`MonotoneFitter`'s options: the fitter's, a "basis" formulation by default,
+#: and the derivative rows' own.
+MONOTONE_OPTIONS = extend_spec(
+    FIT_OPTIONS,
+    Option("form", "choice", "two-row", "Derivative rows: two per point, or one (max form).",
+           MONOTONE_FORMS, label="monotone form"),
+    Option("grid", "int", 0, "Extra constraint points, uniform on the domain.", minimum=0),
+    Option("check_points", "int", None, "Points of the dense verification grid.", minimum=2),
+    defaults={"formulation": "basis"},
+)
+
+
+@dataclass(frozen=True)
+class MonotoneOptions(FitOptions):
+    """The checked options of a monotone CDF fit (:data:`MONOTONE_OPTIONS`)."""
+
+    SPEC: ClassVar = MONOTONE_OPTIONS
+
+    formulation: str = "basis"
+    form: str = "two-row"
+    grid: int = 0
+    check_points: int | None = None
+
+    def _check_together(self, where: str | None) -> None:
+        super()._check_together(where)
+        if self.formulation not in ("basis", "auto"):
+            msg = (f"formulation {self.formulation!r} has no derivative rows: a monotone CDF "
+                   "fit uses the seed's basis formulation")
+            raise InputError(f"{where}: {msg}" if where else msg)
+
+
+check_options_class(MonotoneOptions)
+
+
 class MonotoneFitter(RationalFitter):
     """:class:`~ratfit.fitting.search.RationalFitter` for CDFs: monotone rows, CDF verification.
 
@@ -426,8 +464,9 @@ class MonotoneFitter(RationalFitter):
 
     Attributes
     ----------
-    results_, result_, rational_, success_, segments_, space_
-        As for :class:`~ratfit.fitting.search.RationalFitter`.
+    results_, result_, rational_, success_, segments_, space_, options_
+        As for :class:`~ratfit.fitting.search.RationalFitter` (``options_`` is a
+        :class:`MonotoneOptions`).
 
     Examples
     --------
@@ -448,36 +487,27 @@ class MonotoneFitter(RationalFitter):
         self.grid = grid
         self.check_points = check_points
 
+    options_type = MonotoneOptions
+
     def fit(self, segments: Segments) -> MonotoneFitter:
         """Fit a monotone CDF to every channel of ``segments``; returns self."""
-        if self.form not in FORMS:
-            raise InputError(f"unknown monotone form {self.form!r}; choose one of {FORMS}")
-        if isinstance(self.grid, bool) or not isinstance(self.grid, (int, np.integer)) or (
-            self.grid < 0
-        ):
-            raise InputError(f"grid must be an integer >= 0, got {self.grid!r}")
+        self.options()  # the options' messages come before the data's
         if isinstance(segments, Segments) and segments.dim != 1:
             raise InputError(
                 f"monotone CDF fitting is 1-D, the data has {segments.dim} input dimensions"
             )
-        if self.formulation not in ("basis", "auto"):
-            raise InputError(
-                f"formulation {self.formulation!r} has no derivative rows: a monotone CDF "
-                "fit uses the seed's basis formulation"
-            )
         super().fit(segments)
         return self
 
-    def _resolved_active_set(self) -> bool | None:
-        if self.form == "max" and self.active_set is None:
-            return True  # the max form *is* its starting active set
-        return self.active_set
-
-    def _search_parts(self, space: PolynomialSpace, seg: Segments) -> SearchParts:
+    def search_parts(self, space: PolynomialSpace, seg: Segments) -> SearchParts:
+        o = self.options_
+        assert isinstance(o, MonotoneOptions)
         return SearchParts(
-            systems=MonotoneSystems(self.form, int(self.grid)),
+            systems=MonotoneSystems(o.form, o.grid),
             verifier=lambda rf, seg, j: verify_cdf(rf, seg, channel=j,
-                                                   check_points=self.check_points),
+                                                   check_points=o.check_points),
+            # the max form *is* its starting active set
+            active_set=True if o.form == "max" and o.active_set is None else None,
         )
 
 
@@ -510,7 +540,7 @@ def fit_cdf(segments: Segments, **params):
 
 
 # ----------------------------------------------------------------------------- inputs
-def _sorted_x(x: ArrayLike, name: str) -> tuple[Array, Array]:
+def _sorted_x(x: ArrayLike, name: str) -> tuple[Array, NDArray[np.intp]]:
     try:
         xa = np.asarray(x, dtype=float)
     except (TypeError, ValueError) as exc:
@@ -544,7 +574,7 @@ def _finite_or_raise(v: Array, name: str) -> None:
         )
 
 
-def _values(v: ArrayLike, n: int, name: str, order: Array) -> Array:
+def _values(v: ArrayLike, n: int, name: str, order: NDArray[np.intp]) -> Array:
     try:
         va = np.ravel(np.asarray(v, dtype=float))
     except (TypeError, ValueError) as exc:

@@ -9,17 +9,16 @@ from typing import Any
 import click
 import numpy as np
 
-from ratfit.brdf.fitter import BRDF_SOLVER, DEFAULT_DT
+from ratfit.brdf.options import BRDF_SOLVER
 from ratfit.cli.main import (
     EXIT_NO_FIT,
-    _fit_json,
     _print_report,
     _progress,
     _write_json,
     main,
     trust_edited_option,
 )
-from ratfit.cli.options import aliased_option, fit_options, pop_fit_params
+from ratfit.cli.options import aliased_option, check_size_flags, fit_options, pop_fit_params
 
 
 @main.group("brdf")
@@ -29,9 +28,6 @@ def brdf_group() -> None:
 
 def _split_channels(values: tuple[str, ...]) -> list[str]:
     return [c.strip() for v in values for c in v.split(",") if c.strip()]
-
-
-_ISOTROPIC_DEFAULT = {"CARTESIAN": "ISOTROPIC_TV_TL_DPHI"}
 
 
 @brdf_group.command("fit")
@@ -81,157 +77,52 @@ def brdf_fit(input_path: Path, output: Path | None, fmt: str | None, param: str 
              max_points: int | None, no_polish: bool, as_json: bool,
              **options: Any) -> None:
     """Fit each channel of a measured BRDF with a verified rational function."""
-    from ratfit.brdf.fitter import (
-        brdf_metrics,
-        candidate_parametrizations,
-        cos_theta_l,
-        fit_brdf_auto,
-        save_brdf_fit,
-        subset_status,
-    )
-    from ratfit.brdf.io import brdf_dataset
-    from ratfit.brdf.parametrizations import get_parametrization
-    from ratfit.io.fitfile import file_sha256
+    from ratfit.jobs import BRDFFitRequest, fit_brdf_file
 
     params = pop_fit_params(options)
-    if (params["n"] is None) != (params["m"] is None):
-        raise click.UsageError("give both --n and --m, or neither")
+    check_size_flags(params)
     if max_points is not None and max_points < 2:
         raise click.UsageError("--max-points must be >= 2")
-    user_param = param is not None
-    if param is not None:
-        param = get_parametrization(param).name
-    ds = brdf_dataset(input_path, param, fmt=fmt, channels=_split_channels(channels) or None,
-                      color=color, max_points=max_points)
-    own = str(ds.meta.get("param_in"))
-    if param is None and own in _ISOTROPIC_DEFAULT:
-        # 6-D Cartesian pairs of an isotropic material (Cornell files): 3-D angles carry
-        # the same information with no constant column and far fewer coefficients.
-        param = _ISOTROPIC_DEFAULT[own]
-        ds = brdf_dataset(input_path, param, fmt=fmt,
-                          channels=_split_channels(channels) or None, color=color,
-                          max_points=max_points)
-    # No --param and no fixed size: the half-vector frame first, then the angles.
-    names = (str(ds.meta.get("param_in")),) if user_param or params["n"] is not None \
-        or params["total"] is not None else \
-        candidate_parametrizations(str(ds.meta.get("param_in")))
-    datasets = [ds if name == ds.meta.get("param_in") else
-                brdf_dataset(input_path, name, fmt=fmt,
-                             channels=_split_channels(channels) or None, color=color,
-                             max_points=max_points) for name in names]
+    request = BRDFFitRequest.from_settings(input_path, {
+        **params, "format": fmt, "parametrization": param, "dt": dt, "abs_width": abs_width,
+        "floor_rel": floor_rel, "cosine": cosine, "clamp": clamp, "positive_q": positive_q,
+        "channels": _split_channels(channels), "color": color, "max_points": max_points,
+        "polish": not no_polish, "output": output})
     cb, stop = _progress(True)  # stderr: JSON on stdout stays clean
     try:
-        fitter, seg, meta = fit_brdf_auto(
-            datasets, dt=dt, abs_width=abs_width, floor_rel=floor_rel, cosine=cosine,
-            clamp=clamp, positive_q=positive_q, polish=not no_polish, callback=cb, **params,
-        )
+        report = fit_brdf_file(request.with_progress(cb))
     finally:
         stop()
-    ds = next(d for d in datasets if d.meta.get("param_in") == meta["parametrization"])
-    if len(datasets) == 1 and own in _ISOTROPIC_DEFAULT and not user_param and not as_json:
-        click.echo(f"parametrization: {param} (chosen for the file's {own}; "
-                   "--param overrides)", err=True)
-    if len(datasets) > 1 and not as_json:
-        def said(c: dict[str, Any]) -> str:
-            if c.get("narrowed_floor_from"):
-                got = (f"{c['coefficients']} coefficients" if c["verified"]
-                       else "no verified fit, not kept")
-                return f"floor {c['floor_rel']:g}: {got}"
-            if c.get("widened_from"):
-                got = (f"{c['coefficients']} coefficients" if c["verified"] else
-                       "no candidate either" if c.get("no_candidate") else
-                       "no verified fit")
-                return (f"{c['parametrization']} widened from {c['widened_from']:.3g} "
-                        f"to {c['dt']:.3g}: {got}")
-            if c.get("skipped"):
-                return f"{c['parametrization']}: not tried, {c['skipped']}"
-            if c["verified"]:
-                return f"{c['parametrization']}: {c['coefficients']} coefficients"
-            up = f" up to {c['searched_up_to']} per channel" if c["searched_up_to"] else ""
-            if c.get("no_candidate"):
-                return (f"{c['parametrization']} at {c['dt']:.3g}: no candidate{up} "
-                        "(every split infeasible)")
-            return f"{c['parametrization']}: no verified fit{up}"
-
-        click.echo(f"parametrization: {meta['parametrization']} ("
-                   + "; ".join(said(c) for c in meta["candidates"])
-                   + "; narrower segments, then fewer coefficients win; --param fixes one)",
-                   err=True)
-    widths = meta["segments"]
-    if widths["default"] and not as_json:
-        ladder = widths.get("widened_from") or []
-        base = ladder[0] if ladder else widths["dt"]
-        why = "" if base == DEFAULT_DT else (
-            f", widened from {DEFAULT_DT:g}" + (f" to {base:.3g}" if ladder else "")
-            + " so that samples measured at nearly the same point have overlapping segments")
-        if ladder:
-            why += ("; then to " + ", ".join(f"{w:.3g}" for w in [*ladder[1:], widths["dt"]])
-                    + ": at " + ", ".join(f"{w:.3g}" for w in ladder)
-                    + " every split the search tested was infeasible")
-        if widths.get("narrowed_floor_from"):
-            why += (f"; floor narrowed from {widths['narrowed_floor_from']:g}: the fit "
-                    "there was small and most samples lay under the floor")
-        click.echo(f"segments: y +- {widths['dt']:.3g} y with a floor of "
-                   f"{widths['floor_rel']:g} x the channel's largest value (default{why}; "
-                   "--dt, --abs-width, --floor-rel override)", err=True)
-    results = fitter.results_
-    ok = all(r.success for r in results)
-    metrics: dict[str, Any] | None = None
-    if ok:
-        pred = np.stack([r.rational(seg.x) for r in results], axis=1)
-        cl = None
-        if meta["parametrization"] in ("UNKNOWN",):
-            cl = None
-        else:
-            try:
-                cl = cos_theta_l(seg.x, meta["parametrization"])
-            except Exception:  # parametrizations without theta_l: no cos-weighted metric
-                cl = None
-        metrics = brdf_metrics(pred, seg.center, cl, seg.names)
-    if output is not None and ok:
-        save_brdf_fit(output, results, meta, provenance={
-            "input": str(input_path), "input_sha256": file_sha256(input_path),
-            "n_points": seg.n_points, "solver": params["solver"],
-            "segments": {"dt": dt, "abs_width": abs_width, "floor_rel": floor_rel},
-        })
-    subset = ds.meta.get("subset")
     if as_json:
-        doc = _fit_json(results, output if ok else None)
-        doc["parametrization"] = meta["parametrization"]
-        doc["parametrization_candidates"] = meta["candidates"]
-        doc["n_points"] = seg.n_points
-        doc["verified_on"] = meta["verified_on"]
-        if subset:
-            doc["subset"] = dict(subset)
-            doc["status"] = subset_status(subset["points"], subset["of"]) if ok else (
-                "no verified fit")
-        doc["metrics"] = metrics
-        _write_json(doc)
+        _write_json(report.summary())
     else:
-        _print_report(results, output if ok and output else None,
-                      verified_as="subset" if subset else None)
-        click.echo(f"parametrization {meta['parametrization']}, {seg.n_points} samples")
-        if subset and ok:
-            click.echo("status: " + subset_status(subset["points"], subset["of"]))
-        if meta.get("dropped_coords"):
-            click.echo("constant coordinates dropped (recorded in the fit): "
-                       + ", ".join(f"#{k} = {v:.6g}" for k, v in meta["dropped_coords"].items()))
-        for name, v in zip(seg.names, meta.get("validity") or [], strict=False):
-            if v:
-                click.echo(f"{name}: physical check: {v}")
-        for name, mm in (metrics or {}).items():
-            click.echo(f"{name}: " + ", ".join(f"{k} {v:.4g}" for k, v in mm.items()))
-        if output is not None and not ok:
+        for line in report.notes():
+            click.echo(line, err=True)
+        _print_brdf_report(report)
+        if output is not None and not report.success:
             click.echo(f"no fit file written: not every channel is verified ({output})", err=True)
-    if not ok:
-        if widths["default"]:
-            limited = any(r.time_limited for r in results)
-            click.echo(
-                f"hint: no verified fit at the default segments (y +- {widths['dt']:.3g} y); "
-                f"wider ones (--dt {min(2 * float(widths['dt']), 1.0):.2g}) "
-                + ("or a longer --time-limit (the search ran out of time) " if limited else "")
-                + "may give one", err=True)
+    if not report.success:
+        hint = report.hint()
+        if hint:
+            click.echo(hint, err=True)
         sys.exit(EXIT_NO_FIT)
+
+
+def _print_brdf_report(report: Any) -> None:
+    """The table of ``ratfit fit``, then the frame, the status and the errors."""
+    seg, meta = report.segments, report.meta
+    _print_report(report.results, report.written, verified_as="subset" if report.subset else None)
+    click.echo(f"parametrization {report.parametrization}, {seg.n_points} samples")
+    if report.subset and report.success:
+        click.echo("status: " + str(report.status()))
+    if meta.get("dropped_coords"):
+        click.echo("constant coordinates dropped (recorded in the fit): "
+                   + ", ".join(f"#{k} = {v:.6g}" for k, v in meta["dropped_coords"].items()))
+    for name, v in zip(seg.names, meta.get("validity") or [], strict=False):
+        if v:
+            click.echo(f"{name}: physical check: {v}")
+    for name, mm in (report.metrics or {}).items():
+        click.echo(f"{name}: " + ", ".join(f"{k} {v:.4g}" for k, v in mm.items()))
 
 
 @brdf_group.command("eval")
@@ -302,7 +193,7 @@ def _read_table(path: Path, width: int) -> np.ndarray:
 
     if not path.is_file():
         raise FileFormatError(f"{path}: no such file")
-    rows = []
+    rows: list[list[float]] = []
     for n, raw in enumerate(path.read_text(errors="replace").splitlines(), start=1):
         s = raw.strip()
         if not s or s.startswith("#"):

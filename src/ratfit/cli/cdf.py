@@ -22,7 +22,6 @@ import numpy as np
 
 from ratfit.cli.main import (
     EXIT_NO_FIT,
-    _fit_json,
     _progress,
     _write_json,
     demo_group,
@@ -31,6 +30,7 @@ from ratfit.cli.main import (
 )
 from ratfit.cli.options import aliased_option, fit_options, pop_fit_params
 from ratfit.errors import FileFormatError, InputError, RatfitError
+from ratfit.jobs.common import results_summary
 
 SOURCES = ("pdf", "cdf", "samples")
 
@@ -104,7 +104,7 @@ def _with_source(exc: RatfitError, path: Path) -> RatfitError:
 def cdf_json(fitter, output: Path | None) -> dict[str, Any]:
     """`ratfit fit --json` keys plus ``monotone`` (the CDF checks and constraint setup)."""
     res = fitter.result_
-    doc = _fit_json(fitter.results_, output)
+    doc = results_summary(fitter.results_, output)
     ver = res.verification
     mono: dict[str, Any] = ver.monotone_summary() if hasattr(ver, "monotone_summary") else {
         "verified": False}
@@ -114,6 +114,18 @@ def cdf_json(fitter, output: Path | None) -> dict[str, Any]:
 
 
 # ---------------------------------------------------------------------------- cdf
+def _one_domain(pairs: list[list[float]] | None) -> tuple[float, float] | None:
+    """The --domain of a CDF: one LO < HI pair, or None (the data's range)."""
+    if pairs is None:
+        return None
+    if len(pairs) != 1:
+        raise InputError(f"a CDF has one variable: give one --domain LO HI, got {len(pairs)}")
+    lo, hi = (float(v) for v in pairs[0])
+    if not hi > lo:
+        raise InputError(f"zero-length or reversed domain {[lo, hi]}")
+    return lo, hi
+
+
 @main.command("cdf")
 @click.argument("input_path", metavar="INPUT", type=click.Path(dir_okay=False, path_type=Path))
 @click.option("-o", "--output", type=click.Path(dir_okay=False, path_type=Path),
@@ -152,14 +164,7 @@ def cdf_cmd(input_path: Path, output: Path | None, source: str | None, fmt: str 
         raise click.UsageError("give both --n and --m, or neither")
     if source is None:
         source = "samples" if input_path.suffix.lower() == ".npy" else "pdf"
-    domain = None
-    if params["domain"] is not None:
-        if len(params["domain"]) != 1:
-            raise InputError(f"a CDF has one variable: give one --domain LO HI, got "
-                             f"{len(params['domain'])}")
-        domain = tuple(params["domain"][0])
-        if not domain[1] > domain[0]:
-            raise InputError(f"zero-length or reversed domain {list(domain)}")
+    domain = _one_domain(params["domain"])
     try:
         seg = _segments(input_path, source, fmt, dt, abs_width, confidence, points, channel,
                         domain)
@@ -175,6 +180,7 @@ def cdf_cmd(input_path: Path, output: Path | None, source: str | None, fmt: str 
     if output is not None and ok:
         from ratfit.cdf.sampling import RationalCDF
 
+        assert res.rational is not None  # a verified fit has its rational
         model = RationalCDF(res.rational)
         doc = fit_document(fitter.results_, provenance={
             "input": str(input_path), "input_sha256": file_sha256(input_path),
@@ -193,7 +199,8 @@ def cdf_cmd(input_path: Path, output: Path | None, source: str | None, fmt: str 
         _print_report(fitter.results_, output if ok and output else None)
         ver = res.verification
         if ver is not None and not getattr(ver, "monotone", True):
-            click.echo(f"not monotone between constraint points (min step {ver.min_step:.3g}): "
+            step = getattr(ver, "min_step", float("nan"))
+            click.echo(f"not monotone between constraint points (min step {step:.3g}): "
                        "add constraint points with --grid K", err=True)
         if output is not None and not ok:
             click.echo(f"no fit file written: the CDF fit is not verified ({output})", err=True)

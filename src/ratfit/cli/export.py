@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Any
 
 import click
 
@@ -54,47 +55,58 @@ def plot_cmd(fit_path: Path, data_path: Path | None, kind: str, output: Path, ch
              dim: int, models: tuple[str, ...], size: int) -> None:
     """Pictures of a fit: slice (fit, data, signed error), error, polar or sphere."""
     from ratfit.brdf.analytic_models import Model
-    from ratfit.viz import pictures as pic
-    from ratfit.viz.report import (
-        coordinate_names,
-        cos_factor,
-        load_data_for,
-        load_fit_any,
-        model_fit_for,
-        segments_of,
-    )
+    from ratfit.viz.report import LoadedFit, load_data_for
 
     if output.suffix.lower() != ".png":
         raise InputError(f"{output}: plots are PNG files (use a .png name)")
     for spec in models:
         Model(spec)  # check before any work
-    fit = load_fit_any(fit_path)
+    fit = LoadedFit.load(fit_path)
     if not 0 <= channel < len(fit.saved.channels):
         raise InputError(f"channel {channel} out of range: the fit has "
                          f"{len(fit.saved.channels)} channel(s)")
     ds = load_data_for(fit, data_path) if data_path is not None else None
     if kind in ("slice", "error"):
-        if kind == "error" and ds is None:
-            raise click.UsageError("--kind error needs --data")
-        if not 0 <= dim < fit.saved.space.dim:
-            raise InputError(f"--dim {dim} out of range: the fit has "
-                             f"{fit.saved.space.dim} input dimension(s)")
-        seg = segments_of(fit, ds) if ds is not None else None
-        kw = {"lo": None if seg is None else seg.lo, "hi": None if seg is None else seg.hi,
-              "dim": dim, "channel": channel, "names": coordinate_names(fit, ds)}
-        if kind == "slice":
-            pic.plot_slice(fit.saved, output, x=None if ds is None else ds.x,
-                           y=None if ds is None else ds.y, **kw)
-        else:
-            assert ds is not None
-            pic.plot_error(fit.saved, output, ds.x, ds.y, **kw)
-        if seg is not None:
-            _say_recheck(fit, seg, data_path)
-        click.echo(f"wrote {output}")
-        return
-    if not fit.is_brdf:
-        raise InputError(f"{fit_path}: --kind {kind} needs a BRDF fit (a fit file that records "
-                         "its parametrization, from `ratfit brdf fit`)")
+        _plot_values(fit, ds, data_path, kind, output, channel, dim)
+    else:
+        if not fit.is_brdf:
+            raise InputError(f"{fit_path}: --kind {kind} needs a BRDF fit (a fit file that "
+                             "records its parametrization, from `ratfit brdf fit`)")
+        _plot_brdf(fit, ds, kind, output, channel, models, size)
+    click.echo(f"wrote {output}")
+
+
+def _plot_values(fit: Any, ds: Any, data_path: Path | None, kind: str, output: Path,
+                 channel: int, dim: int) -> None:
+    """A slice of the fit along one input (with the data), or its error at the data."""
+    from ratfit.viz import pictures as pic
+    from ratfit.viz.report import coordinate_names, segments_of
+
+    if kind == "error" and ds is None:
+        raise click.UsageError("--kind error needs --data")
+    if not 0 <= dim < fit.saved.space.dim:
+        raise InputError(f"--dim {dim} out of range: the fit has "
+                         f"{fit.saved.space.dim} input dimension(s)")
+    seg = segments_of(fit, ds) if ds is not None else None
+    lo, hi = (None, None) if seg is None else (seg.lo, seg.hi)
+    names = coordinate_names(fit, ds)
+    if kind == "slice":
+        pic.plot_slice(fit.saved, output, x=None if ds is None else ds.x,
+                       y=None if ds is None else ds.y, lo=lo, hi=hi, dim=dim,
+                       channel=channel, names=names)
+    else:
+        pic.plot_error(fit.saved, output, ds.x, ds.y, lo=lo, hi=hi, dim=dim,
+                       channel=channel, names=names)
+    if seg is not None and data_path is not None:
+        _say_recheck(fit, seg, data_path)
+
+
+def _plot_brdf(fit: Any, ds: Any, kind: str, output: Path, channel: int,
+               models: tuple[str, ...], size: int) -> None:
+    """Polar lobes or rendered spheres of a BRDF fit (and the data, and models)."""
+    from ratfit.viz import pictures as pic
+    from ratfit.viz.report import cos_factor, model_fit_for
+
     assert fit.param is not None
     cf = ds is not None and cos_factor(ds)
     funcs = {"rational": pic.fit_brdf_function(fit.brdf, cos_factor=cf)}
@@ -104,16 +116,15 @@ def plot_cmd(fit_path: Path, data_path: Path | None, kind: str, output: Path, ch
             funcs[mf.name] = mf.eval_dirs
     if kind == "polar":
         pic.plot_polar(funcs, output, channel=channel)
-    else:
-        imgs = {}
-        if ds is not None:
-            imgs["data"] = pic.render_sphere(
-                pic.DataBRDF(ds.x, ds.y, fit.param, cos_factor=cf,
-                             fold_phi_d=bool(ds.meta.get("fold_phi_d"))), size=size)
-        for name, f in funcs.items():
-            imgs[name] = pic.render_sphere(f, size=size)
-        pic.plot_spheres(imgs, output)
-    click.echo(f"wrote {output}")
+        return
+    imgs = {}
+    if ds is not None:
+        imgs["data"] = pic.render_sphere(
+            pic.DataBRDF(ds.x, ds.y, fit.param, cos_factor=cf,
+                         fold_phi_d=bool(ds.meta.get("fold_phi_d"))), size=size)
+    for name, f in funcs.items():
+        imgs[name] = pic.render_sphere(f, size=size)
+    pic.plot_spheres(imgs, output)
 
 
 def _say_recheck(fit, seg, data_path: Path) -> None:
@@ -159,7 +170,6 @@ def _compare(data_path: Path, fits: tuple[str, ...], models: tuple[str, ...], pa
         LoadedFit,
         compare_table,
         load_data_for,
-        load_fit_any,
         model_fit_for,
         model_metrics,
         rational_metrics,
@@ -176,7 +186,7 @@ def _compare(data_path: Path, fits: tuple[str, ...], models: tuple[str, ...], pa
         if _is_model_file(Path(f)):
             model_files.append(Path(f))
             continue
-        lf = load_fit_any(f)
+        lf = LoadedFit.load(f)
         if not lf.is_brdf:
             raise InputError(f"{f}: not a BRDF fit (it records no parametrization)")
         ds = load_data_for(lf, data_path)

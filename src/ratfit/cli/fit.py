@@ -11,16 +11,13 @@ import numpy as np
 
 from ratfit.cli.main import (
     EXIT_NO_FIT,
-    _fit_json,
-    _monomials,
     _print_report,
     _progress,
     _write_json,
     main,
     trust_edited_option,
 )
-from ratfit.cli.options import fit_options, pop_fit_params, segment_options
-from ratfit.errors import RatfitError
+from ratfit.cli.options import check_size_flags, fit_options, pop_fit_params, segment_options
 from ratfit.io.data import FORMATS
 
 
@@ -53,79 +50,36 @@ def fit_cmd(input_path: Path, output: Path | None, fmt: str | None, dt: float | 
     Exit codes: 0 every channel has a verified fit; 1 the search found no
     verified fit (no fit file is written); 2 bad input or usage (one error line).
     """
-    from ratfit.fitting.search import RationalFitter
-    from ratfit.io.data import read_data
-    from ratfit.io.fitfile import file_sha256, fit_document, save_fit
+    from ratfit.jobs import FitRequest, fit_file
 
-    time_limit = options["time_limit"]
-    if not time_limit >= 0:
-        raise click.UsageError(f"--time-limit must be >= 0 seconds, got {time_limit}")
+    if not options["time_limit"] >= 0:
+        raise click.UsageError(f"--time-limit must be >= 0 seconds, got {options['time_limit']}")
     params = pop_fit_params(options)
-    n, m, total = params["n"], params["m"], params["total"]
-    if shared and (n is not None or total is not None):
-        raise click.UsageError("--shared-denominator searches the numerator sizes itself: "
-                               "drop --n/--total (--m fixes the shared denominator)")
-    if (n is None) != (m is None) and not shared:
-        raise click.UsageError("give both --n and --m, or neither")
-    if n is not None and total is not None:
-        raise click.UsageError("--n/--m and --total are exclusive")
-    data = read_data(input_path, fmt=fmt)
-    try:
-        seg = data.segments(dt=dt, abs_width=abs_width)
-    except RatfitError as exc:
-        msg = str(exc)
-        raise type(exc)(msg if str(input_path) in msg else f"{input_path}: {msg}") from None
-    if channels:
-        from ratfit.core.segments import Segments
-
-        for c in channels:
-            seg.channel(c)  # validates the index
-        pick = list(channels)
-        seg = Segments(seg.x, seg.lo[:, pick], seg.hi[:, pick],
-                       None if seg.y is None else seg.y[:, pick],
-                       tuple(seg.names[c] for c in pick))
+    check_size_flags(params, shared=shared)
+    request = FitRequest.from_settings(input_path, {
+        **params, "format": fmt, "dt": dt, "abs_width": abs_width,
+        "channels": channels, "monomial": monomial, "output": output,
+        "shared_denominator": shared})
     cb, stop = _progress(True)  # stderr: JSON on stdout stays clean
-    shared_fit = None
     try:
-        if shared:
-            from ratfit.fitting.shared_denominator import SharedDenominatorFitter
-
-            shared_fit = SharedDenominatorFitter(
-                basis=params["basis"], index_set=params["index_set"], domain=params["domain"],
-                m=m, max_n=params["max_total"] or 60, solver=params["solver"],
-                cross_check=params["cross_check"], jobs=params["jobs"] or 1, callback=cb,
-            ).fit(seg).result_
-            results = shared_fit.results
-        else:
-            results = RationalFitter(**params, callback=cb).fit(seg).results_
+        report = fit_file(request.with_progress(cb))
     finally:
         stop()
-    ok = all(r.success for r in results)
-    if output is not None and ok:
-        mono = _monomials(results, seg) if monomial else None
-        segdesc: dict[str, Any] = {"dt": dt, "abs_width": abs_width,
-                                   "explicit": dt is None and abs_width is None}
-        doc = fit_document(results, monomial=mono, provenance={
-            "input": str(input_path), "input_sha256": file_sha256(input_path),
-            "n_points": seg.n_points, "segments": segdesc, "solver": params["solver"],
-        })
-        save_fit(output, doc)
+    for note in report.messages:
+        click.echo(f"warning: {note}", err=True)
     if as_json:
         # "infeasible_proof" (null when feasible) comes with each channel's summary:
         # top level for one channel, under "channels" for several.
-        doc = _fit_json(results, output if ok else None)
-        if shared_fit is not None:
-            doc.update(shared_denominator=True, m_shared=shared_fit.m, total=shared_fit.total,
-                       proven_minimal=shared_fit.proven)
-        _write_json(doc)
+        _write_json(report.summary())
     else:
-        _print_report(results, output if ok and output else None)
-        if shared_fit is not None:
-            click.echo(f"shared denominator: n = {list(shared_fit.n)}, m = {shared_fit.m}, "
-                       f"total {shared_fit.total} coefficients")
-        if output is not None and not ok:
+        _print_report(report.results, report.written)
+        if report.shared is not None:
+            sh = report.shared
+            click.echo(f"shared denominator: n = {list(sh.n)}, m = {sh.m}, "
+                       f"total {sh.total} coefficients")
+        if output is not None and not report.success:
             click.echo(f"no fit file written: not every channel is verified ({output})", err=True)
-    if not ok:
+    if not report.success:
         sys.exit(EXIT_NO_FIT)
 
 

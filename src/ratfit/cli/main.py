@@ -309,59 +309,6 @@ def _fmt(v: float | None) -> str:
     return "-" if v is None else f"{v:.3g}"
 
 
-def _monomials(results, seg) -> list[dict | None]:
-    from ratfit.core.monomial import to_monomial
-    from ratfit.errors import AccuracyWarning
-
-    out: list[dict | None] = []
-    for r in results:
-        if r.rational is not None and getattr(r.rational.space, "variable", "x") != "x":
-            out.append(None)  # a polynomial in log x has no monomial form in x
-            continue
-        with warnings.catch_warnings(record=True) as caught:
-            warnings.simplefilter("always", AccuracyWarning)
-            mf = to_monomial(r.rational, seg.x)
-        for w in caught:
-            click.echo(f"warning: channel {r.channel}: {w.message}", err=True)
-        out.append(mf.to_dict())
-    return out
-
-
-def _fit_json(results, output: Path | None) -> dict[str, Any]:
-    per = [r.summary() for r in results]
-    if len(per) == 1:
-        doc = dict(per[0])
-    else:
-        doc = {
-            "n": [p["n"] for p in per],
-            "m": [p["m"] for p in per],
-            "total": sum(p["total"] for p in per),
-            "basis": per[0]["basis"],
-            "verified": all(p["verified"] for p in per),
-            "success": all(p["success"] for p in per),
-            "max_violation": _worst(per, "max_violation"),
-            "linf": _worst(per, "linf"),
-            "l2": _worst(per, "l2"),
-            "max_rel_error": _worst(per, "max_rel_error"),
-            "delta": min((p["delta"] for p in per if p["delta"] is not None), default=None),
-            "sigma_min": min((p["sigma_min"] for p in per if p["sigma_min"] is not None),
-                             default=None),
-            "sigma_max": max((p["sigma_max"] for p in per if p["sigma_max"] is not None),
-                             default=None),
-            "seconds": sum(p["seconds"] for p in per),
-        }
-        # one certificate per channel (null where that channel has a fit)
-        doc["infeasible_proof"] = [p.get("infeasible_proof") for p in per]
-    doc["channels"] = per
-    doc["output"] = str(output) if output else None
-    return doc
-
-
-def _worst(vals: list[dict], key: str) -> float | None:
-    xs = [p[key] for p in vals]
-    return None if any(v is None for v in xs) else max(xs)
-
-
 # ---------------------------------------------------------------------------- eval
 @main.group("demo")
 def demo_group() -> None:

@@ -15,7 +15,8 @@ import click
 
 from ratfit.core.options import FIT_OPTIONS, SEGMENT_OPTIONS, Option
 
-__all__ = ["aliased_option", "fit_options", "pop_fit_params", "segment_options"]
+__all__ = ["aliased_option", "check_size_flags", "fit_options", "pop_fit_params",
+           "segment_options"]
 
 F = Callable[..., Any]
 
@@ -96,6 +97,19 @@ def pop_fit_params(kwargs: dict[str, Any]) -> dict[str, Any]:
     return out
 
 
+def check_size_flags(params: dict[str, Any], *, shared: bool = False) -> None:
+    """The rules between --n, --m and --total, in the flags' own words (usage errors;
+    the library says the same of n, m and total)."""
+    n, m, total = params.get("n"), params.get("m"), params.get("total")
+    if shared and (n is not None or total is not None):
+        raise click.UsageError("--shared-denominator searches the numerator sizes itself: "
+                               "drop --n/--total (--m fixes the shared denominator)")
+    if (n is None) != (m is None) and not shared:
+        raise click.UsageError("give both --n and --m, or neither")
+    if n is not None and total is not None:
+        raise click.UsageError("--n/--m and --total are exclusive")
+
+
 class _AliasedOption(click.Option):
     """An option with extra spellings that work but stay out of ``--help``."""
 
@@ -111,7 +125,7 @@ class _AliasedOption(click.Option):
         finally:
             self.opts = saved
 
-    def get_error_hint(self, ctx: click.Context) -> str:
+    def get_error_hint(self, ctx: click.Context | None) -> str:
         return " / ".join(f"'{o}'" for o in self.opts if o not in self.hidden_names)
 
 

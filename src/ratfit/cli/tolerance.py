@@ -8,9 +8,10 @@ from typing import Any
 
 import click
 
-from ratfit.cli.main import EXIT_NO_FIT, _fit_json, _fmt, _write_json, main
+from ratfit.cli.main import EXIT_NO_FIT, _fmt, _write_json, main
 from ratfit.cli.options import fit_options, pop_fit_params
 from ratfit.io.data import FORMATS
+from ratfit.jobs.common import results_summary
 
 
 @main.command("tolerance")
@@ -71,8 +72,19 @@ def tolerance_cmd(input_path: Path, width_kind: str, absolute_flag: bool, rtol: 
                                    basis=basis, solver=solver, name=names[c]))
         except InputError as exc:
             raise InputError(f"{input_path}: channel {names[c]}: {exc}") from None
+    ok = all(o.success for o in outs)
+    if as_json:
+        _write_json(_widths_summary(outs))
+    else:
+        _print_widths([names[c] for c in pick], outs, absolute, n, m)
+    if not ok:
+        sys.exit(EXIT_NO_FIT)
+
+
+def _widths_summary(outs: list[Any]) -> dict[str, Any]:
+    """The ``--json`` object: the fits' summary with each channel's best width."""
     found = [o for o in outs if o.fit is not None]
-    doc: dict[str, Any] = _fit_json([o.fit for o in found], None) if found else {}
+    doc: dict[str, Any] = results_summary([o.fit for o in found], None) if found else {}
     per = [o.summary() for o in outs]
     if len(outs) == 1:
         doc.update(per[0])
@@ -83,21 +95,19 @@ def tolerance_cmd(input_path: Path, width_kind: str, absolute_flag: bool, rtol: 
                                                          if o.fit is not None], strict=True):
             entry.update(p)
         doc["widths"] = per
-    ok = all(o.success for o in outs)
-    doc["success"] = ok
-    if as_json:
-        _write_json(doc)
-    else:
-        kind = "absolute" if absolute else "relative"
-        for name, o in zip((names[c] for c in pick), outs, strict=True):
-            if o.fit is None:
-                click.echo(f"{name}: no verified fit of size n={n}, m={m} at any width tried")
-                continue
-            v = o.fit.verification
-            proof = ("certified infeasible" if o.lower_certified else "NOT certified")
-            click.echo(
-                f"{name}: best {kind} width {o.width:.6g} for n={n}, m={m} (verified; max rel. "
-                f"error {_fmt(v.max_rel_error if v else None)}); {o.lower:.6g} is {proof}"
-            )
-    if not ok:
-        sys.exit(EXIT_NO_FIT)
+    doc["success"] = all(o.success for o in outs)
+    return doc
+
+
+def _print_widths(names: list[str], outs: list[Any], absolute: bool, n: int, m: int) -> None:
+    kind = "absolute" if absolute else "relative"
+    for name, o in zip(names, outs, strict=True):
+        if o.fit is None:
+            click.echo(f"{name}: no verified fit of size n={n}, m={m} at any width tried")
+            continue
+        v = o.fit.verification
+        proof = ("certified infeasible" if o.lower_certified else "NOT certified")
+        click.echo(
+            f"{name}: best {kind} width {o.width:.6g} for n={n}, m={m} (verified; max rel. "
+            f"error {_fmt(v.max_rel_error if v else None)}); {o.lower:.6g} is {proof}"
+        )

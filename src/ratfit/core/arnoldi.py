@@ -178,7 +178,7 @@ class ArnoldiBasis:
         idx = self.space.indices(k)
         shape = tuple(int(v) + 2 for v in idx.max(axis=0))
         mulx = _MULX[self.space.family.name]
-        cols = []
+        cols: list[Array] = []
         for i in range(k):
             if i == 0:
                 a = np.zeros(shape)

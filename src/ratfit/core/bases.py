@@ -15,6 +15,7 @@ from __future__ import annotations
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from functools import cached_property
+from typing import Any
 
 import numpy as np
 from numpy.polynomial import chebyshev as _cheb
@@ -38,15 +39,19 @@ Array = NDArray[np.float64]
 
 @dataclass(frozen=True)
 class Family:
-    """A 1-D polynomial family on the window [-1, 1], by numpy module functions."""
+    """A 1-D polynomial family on the window [-1, 1], by numpy module functions.
+
+    (numpy types these functions as overloaded callables over every dtype; here
+    they are called on float arrays and give float arrays.)
+    """
 
     name: str
-    vander: Callable[[ArrayLike, int], Array]
-    val: Callable[..., Array]
-    der: Callable[..., Array]
-    roots: Callable[[ArrayLike], NDArray]
-    to_power: Callable[[ArrayLike], Array]
-    from_power: Callable[[ArrayLike], Array]
+    vander: Callable[..., Any]
+    val: Callable[..., Any]
+    der: Callable[..., Any]
+    roots: Callable[..., NDArray[Any]]
+    to_power: Callable[..., Any]
+    from_power: Callable[..., Any]
 
 
 def _identity(c: ArrayLike) -> Array:

@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import warnings
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 from numpy.polynomial import Polynomial
@@ -28,7 +29,7 @@ from ratfit.errors import AccuracyWarning, InputError
 __all__ = ["MonomialForm", "horner", "to_monomial"]
 
 Array = NDArray[np.float64]
-_NUMPY_KIND = {
+_NUMPY_KIND: dict[str, Any] = {
     "legendre": np.polynomial.Legendre,
     "chebyshev": np.polynomial.Chebyshev,
     "monomial": np.polynomial.Polynomial,

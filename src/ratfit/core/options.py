@@ -11,10 +11,11 @@ Allowed values are read from the registries (:data:`ratfit.core.bases.FAMILIES`,
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from collections.abc import Callable, Iterable, Mapping
-from dataclasses import dataclass
-from typing import Any
+from dataclasses import dataclass, field
+from typing import Any, ClassVar, Self
 
 import numpy as np
 
@@ -32,12 +33,14 @@ __all__ = [
     "DEFAULT_TIME_LIMIT",
     "FIT_OPTIONS",
     "FORMULATIONS",
+    "FitOptions",
     "SEGMENT_OPTIONS",
     "SPLIT_RULES",
     "STRATEGIES",
     "Option",
     "check_fit_params",
-    "check_segment_params",
+    "check_options_class",
+    "extend_spec",
 ]
 
 STRATEGIES = ("staircase", "exhaustive")
@@ -99,6 +102,9 @@ class Option:
         Added to the "must be" message (what the number counts).
     extensible : bool
         The choices come from a registry that may grow (solvers).
+    validator : callable, optional
+        Checks and normalises a value itself (``validator(value) -> value``,
+        InputError when bad) instead of the kind's rule: names with aliases.
     """
 
     name: str
@@ -111,6 +117,7 @@ class Option:
     cli: bool = True
     note: str = ""
     extensible: bool = False
+    validator: Callable[[Any], Any] | None = None
 
     @property
     def flag(self) -> str:
@@ -123,14 +130,12 @@ class Option:
     def check(self, value: Any, where: str | None = None) -> Any:
         """``value`` checked (and normalised: floats as float), or InputError."""
         label = self.label or self.name
+        if self.validator is not None:
+            try:
+                return self.validator(value)
+            except InputError as exc:
+                raise InputError(f"{where}: {exc}" if where else str(exc)) from None
         if self.kind == "choice":
-            if self.name == "solver":
-                from ratfit.core.solvers import check_solver
-
-                try:
-                    return check_solver(value)
-                except InputError as exc:
-                    raise InputError(f"{where}: {exc}" if where else str(exc)) from None
             return check_choice(value, label, self.allowed(), where=where)
         if self.kind == "int":
             return check_int(value, label, minimum=self.minimum, where=where,
@@ -149,7 +154,7 @@ class Option:
             return None if value is None else float(value)
         if self.kind == "domain":
             out = check_domain(value, label, where=where)
-            return None if out is None else out.tolist()
+            return None if out is None else tuple((float(a), float(b)) for a, b in out)
         if self.kind == "callable":
             if value is not None and not callable(value):
                 raise InputError(f"{label} must be callable, got {value!r}")
@@ -159,6 +164,24 @@ class Option:
 
 def _opts(*options: Option) -> dict[str, Option]:
     return {o.name: o for o in options}
+
+
+def _check_solver(value: Any) -> str:
+    from ratfit.core.solvers import check_solver
+
+    return check_solver(value)
+
+
+def extend_spec(base: Mapping[str, Option], *options: Option,
+                defaults: Mapping[str, Any] | None = None) -> dict[str, Option]:
+    """``base`` plus ``options`` (an estimator's own), with some defaults changed:
+    the spec of a fitter that takes every base option and a few of its own."""
+    out = {k: dataclasses.replace(o, default=defaults[k]) if defaults and k in defaults else o
+           for k, o in base.items()}
+    clash = set(out) & {o.name for o in options}
+    if clash:
+        raise ValueError(f"options already in the base spec: {sorted(clash)}")
+    return {**out, **_opts(*options)}
 
 
 #: The parameters of :class:`~ratfit.fitting.search.RationalFitter`, in order.
@@ -184,7 +207,7 @@ FIT_OPTIONS: dict[str, Option] = _opts(
     Option("split_rule", "choice", "min-m", "Which feasible split of the minimal total to keep.",
            SPLIT_RULES, label="split rule"),
     Option("solver", "choice", "quadprog", "QP solver.", _solvers, label="solver",
-           extensible=True),
+           extensible=True, validator=_check_solver),
     Option("cross_check", "choice", "orth", "How a solver's 'infeasible' is checked.",
            _cross_checks, label="cross check"),
     Option("active_set", "bool", None, "Active set: None = automatic (large data).", cli=False),
@@ -198,6 +221,9 @@ FIT_OPTIONS: dict[str, Option] = _opts(
     Option("variable", "choice", "auto",
            "p, q polynomials in x or in log x (auto: also log x for positive 1-D data over "
            "more than 3 decades, keeping the smaller fit).", VARIABLE_CHOICES, label="variable"),
+    Option("warm_start", "bool", True,
+           "Carry active sets across splits and start each channel at the previous "
+           "channel's total (only the speed depends on it).", cli=False),
 )
 
 #: How segments are built from y values (every command and the batch manifest).
@@ -233,23 +259,120 @@ def check_fit_params(params: Mapping[str, Any], *, where: str | None = None,
         One line naming the first bad value.
     """
     extra = set(names or ())
-    for key in params:
-        if key not in FIT_OPTIONS and key not in extra:
-            msg = f"unknown parameter {key!r}; valid: {', '.join(FIT_OPTIONS)}"
-            raise InputError(f"{where}: {msg}" if where else msg)
-    out = {k: o.check(params.get(k, o.default), where) for k, o in FIT_OPTIONS.items()}
-    _at = (lambda m: f"{where}: {m}") if where else (lambda m: m)
-    if (out["n"] is None) != (out["m"] is None):
-        raise InputError(_at("give both n and m, or neither"))
-    if out["n"] is not None and out["total"] is not None:
-        raise InputError(_at("n/m and total are exclusive: give one"))
-    if out["max_total"] is not None and out["max_total"] < out["min_total"]:
-        raise InputError(_at(
-            f"max_total must be an integer >= min_total={out['min_total']}, "
-            f"got {out['max_total']!r}"))
-    return out
+    own = {k: v for k, v in params.items() if k not in extra or k in FIT_OPTIONS}
+    return FitOptions.from_params(own, where=where).params()
 
 
-def check_segment_params(params: Mapping[str, Any], *, where: str | None = None) -> dict[str, Any]:
-    """``dt`` and ``abs_width`` checked (each None or a finite number >= 0)."""
-    return {k: o.check(params.get(k, o.default), where) for k, o in SEGMENT_OPTIONS.items()}
+
+@dataclass(frozen=True)
+class FitOptions:
+    """The checked options of a fit: one object from the caller to the search engine.
+
+    Every field is checked (and normalised) on construction against :attr:`SPEC`,
+    alone and together, so an instance is always valid; ``dataclasses.replace``
+    checks again. An estimator with options of its own subclasses this with a
+    spec that extends :data:`FIT_OPTIONS` (:func:`extend_spec`) and adds its rules
+    in :meth:`_check_together`.
+
+    Parameters
+    ----------
+    basis, index_set, domain, n, m, total, min_total, max_total, strategy, split_rule, \
+solver, cross_check, active_set, jobs, callback, formulation, time_limit, variable, warm_start
+        As for :class:`~ratfit.fitting.search.RationalFitter` (:data:`FIT_OPTIONS`).
+
+    Examples
+    --------
+    >>> from ratfit.core.options import FitOptions
+    >>> FitOptions(basis="chebyshev", time_limit=5).time_limit
+    5.0
+    >>> FitOptions(n=3)
+    Traceback (most recent call last):
+    ...
+    ratfit.errors.InputError: give both n and m, or neither
+    """
+
+    SPEC: ClassVar[Mapping[str, Option]] = FIT_OPTIONS
+
+    basis: str = "legendre"
+    index_set: str = "total"
+    domain: tuple[tuple[float, float], ...] | None = None
+    n: int | None = None
+    m: int | None = None
+    total: int | None = None
+    min_total: int = 2
+    max_total: int | None = None
+    strategy: str = "staircase"
+    split_rule: str = "min-m"
+    solver: str = "quadprog"
+    cross_check: str = "orth"
+    active_set: bool | None = None
+    jobs: int | None = None
+    callback: Callable[[Any], None] | None = field(default=None, compare=False)
+    formulation: str = "auto"
+    time_limit: float | None = DEFAULT_TIME_LIMIT
+    variable: str = "auto"
+    warm_start: bool = True
+
+    def __post_init__(self) -> None:
+        self._check(None)
+
+    def _check(self, where: str | None) -> None:
+        for f in dataclasses.fields(self):
+            object.__setattr__(self, f.name, self.SPEC[f.name].check(getattr(self, f.name),
+                                                                      where))
+        self._check_together(where)
+
+    def _check_together(self, where: str | None) -> None:
+        """Rules between options (subclasses add theirs after calling this)."""
+        def at(msg: str) -> str:
+            return f"{where}: {msg}" if where else msg
+
+        if (self.n is None) != (self.m is None):
+            raise InputError(at("give both n and m, or neither"))
+        if self.n is not None and self.total is not None:
+            raise InputError(at("n/m and total are exclusive: give one"))
+        if self.max_total is not None and self.max_total < self.min_total:
+            raise InputError(at(
+                f"max_total must be an integer >= min_total={self.min_total}, "
+                f"got {self.max_total!r}"))
+
+    @classmethod
+    def from_params(cls, params: Mapping[str, Any], *, where: str | None = None) -> Self:
+        """The options of ``params`` (missing ones at their defaults), or one-line
+        InputError prefixed by ``where``: an unknown name, a bad value, a bad pair."""
+        names = [f.name for f in dataclasses.fields(cls)]
+        for key in params:
+            if key not in names:
+                msg = f"unknown parameter {key!r}; valid: {', '.join(names)}"
+                raise InputError(f"{where}: {msg}" if where else msg)
+        checked = {k: cls.SPEC[k].check(v, where) for k, v in params.items()}
+        try:
+            return cls(**checked)
+        except InputError as exc:  # a rule between options: the same prefix
+            if where is None:
+                raise
+            raise InputError(f"{where}: {exc}") from None
+
+    def params(self) -> dict[str, Any]:
+        """Name -> value of every option (an estimator's keyword arguments)."""
+        return {f.name: getattr(self, f.name) for f in dataclasses.fields(self)}
+
+    def replace(self, **changes: Any) -> Self:
+        """A copy with ``changes``, checked like the original."""
+        return dataclasses.replace(self, **changes)
+
+    def changed(self) -> dict[str, Any]:
+        """The options that differ from the spec's defaults (messages, refusals)."""
+        return {k: v for k, v in self.params().items() if v != self.SPEC[k].default}
+
+
+def check_options_class(cls: type[FitOptions]) -> None:
+    """An options class holds exactly its spec's options, with the spec's defaults
+    (called once per class, at import: a field added to one but not the other fails)."""
+    names = [f.name for f in dataclasses.fields(cls)]
+    assert names == list(cls.SPEC), f"{cls.__name__} fields {names} != its spec"
+    for f in dataclasses.fields(cls):
+        assert f.default == cls.SPEC[f.name].default, f"{cls.__name__}.{f.name} default"
+
+
+check_options_class(FitOptions)

@@ -201,7 +201,7 @@ def _polish_pass(P: Array, Q: Array, lo: Array, hi: Array, y: Array, w: Array, c
     k = R.shape[0]
     if not np.all(np.isfinite(R)) or np.any(np.abs(np.diag(R)) == 0):
         return None
-    Rinv = np.linalg.solve(R, np.eye(k))
+    Rinv = np.asarray(np.linalg.solve(R, np.eye(k)), dtype=np.float64)
     # q at least 1 % of its smallest value on the data, which the start meets: a
     # margin that a sign change between points cannot hide in. p at least 1e-6 of
     # the largest value: a p met to the solver's tolerance (-1e-12) where it touches
@@ -242,9 +242,10 @@ def _positivity_rows(rf: RationalFunction,
     each p row was divided by), 0 on q rows; built once for every pass and cut-off.
     (q > 0 at the data is part of :class:`_BandRows`.)"""
     k = rf.n + rf.m
-    if positive_at is None or not len(positive_at):
+    pts = None if positive_at is None else np.asarray(positive_at, dtype=float)
+    if pts is None or not len(pts):
         return np.zeros((0, k)), np.zeros(0)
-    Pg, Qg = _design(rf, np.asarray(positive_at, dtype=float))
+    Pg, Qg = _design(rf, pts)
     pn = np.linalg.norm(Pg, axis=1)
     pn[pn == 0] = 1.0
     grid = np.vstack([np.hstack([np.zeros_like(Pg), Qg]),
@@ -341,11 +342,16 @@ def _objective_r(P: Array, Q: Array, y: Array, scale: Array, ridge: float = 1e-1
         sl = slice(s, s + _BLOCK)
         M = np.hstack([P[sl], -y[sl, None] * Q[sl]])
         M *= scale[sl, None]
-        parts.append(np.linalg.qr(M, mode="r"))
-    R0 = parts[0] if len(parts) == 1 else np.linalg.qr(np.vstack(parts), mode="r")
+        parts.append(_r_factor(M))
+    R0 = parts[0] if len(parts) == 1 else _r_factor(np.vstack(parts))
     # ||M||_F^2 = ||R0||_F^2: the ridge without another pass over the rows
     r = ridge * max(float(np.sum(R0 * R0)) / k, 1e-300)
-    return np.linalg.qr(np.vstack([R0, np.sqrt(r) * np.eye(k)]), mode="r")
+    return _r_factor(np.vstack([R0, np.sqrt(r) * np.eye(k)]))
+
+
+def _r_factor(M: Array) -> Array:
+    """R of M = QR (numpy's stubs type mode="r" as the full result)."""
+    return np.asarray(np.linalg.qr(M, mode="r"), dtype=np.float64)
 
 
 class _BandRows:

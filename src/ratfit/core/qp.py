@@ -15,8 +15,9 @@ from __future__ import annotations
 
 import threading
 import time
-from collections.abc import Iterator, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -123,7 +124,7 @@ class ConstraintSystem:
             block = np.vstack([np.hstack([b, -lo * b]), np.hstack([-b, hi * b])])
             if acc is not None:
                 block = np.vstack([acc, block])
-            acc = np.linalg.qr(block, mode="r")
+            acc = np.asarray(np.linalg.qr(block, mode="r"), dtype=np.float64)
         assert acc is not None
         return acc[: 2 * k] if acc.shape[0] > 2 * k else acc
 
@@ -273,10 +274,11 @@ def solve_fixed(
             break
         att.qp_solves += 1
         att.solver_status = sol.status
-        c = sol.x if sol.status == "optimal" and _positive(A @ sol.x) else None
+        c = sol.x if sol.status == "optimal" and sol.x is not None \
+            and _positive(A @ sol.x) else None
         att.decided_by = solver
         verdicts = 0  # cross checks that answered (a point, or none)
-        if sol.status == "optimal" and c is None:
+        if sol.status == "optimal" and c is None and sol.x is not None:
             c = _refine(A, b, sol.x)
             if c is not None:
                 att.decided_by = f"{solver}+refine"
@@ -360,7 +362,7 @@ def solve_fixed(
     else:
         att.messages.append(f"active set did not converge in {max_rounds} rounds")
     att.active_set_size = int(idx.size)
-    if att.c is not None:
+    if att.c is not None and norms_all is not None:
         # the rows binding at the solution (within 10x the margin): a next split's start
         att.active_rows = idx[res[idx] <= 10.0 * delta * norms_all[idx]]
     att.seconds = time.perf_counter() - t0
@@ -372,7 +374,7 @@ def _out_of_time(att: Attempt) -> None:
     att.messages.append("time limit reached inside this split")
 
 
-def _delta_from(s: Array, shape: tuple[int, int]) -> tuple[float, float, float]:
+def _delta_from(s: NDArray[Any], shape: tuple[int, int]) -> tuple[float, float, float]:
     """(delta, sigma_min, sigma_max) from the nonzero singular values: with
     dependent columns (few distinct values per axis) the QP still only moves in
     the row space, whose conditioning is what its margin must be scaled by."""
@@ -458,7 +460,7 @@ def _refine(A: Array, b: Array, x: Array, steps: int = 3) -> Array | None:
     return x if bool(np.all(np.isfinite(x)) and np.all(res > 0)) else None
 
 
-def _positive(v: Array) -> bool:
+def _positive(v: NDArray[Any]) -> bool:
     return bool(np.all(np.isfinite(v)) and np.all(v > 0))
 
 
@@ -506,9 +508,9 @@ def _cross_check(A: Array, kind: str, time_limit: float | None = None) -> Array 
         c = Zt.T @ (u / s)
     if not np.all(np.isfinite(c)):
         return None
-    c = c / np.abs(c).max() if np.any(c) else c
+    unit: Array = np.asarray(c / np.abs(c).max() if np.any(c) else c, dtype=np.float64)
     # The sign test in extended precision: c may be long in a nearly null direction.
-    return c if _positive(A.astype(np.longdouble) @ c.astype(np.longdouble)) else None
+    return unit if _positive(A.astype(np.longdouble) @ unit.astype(np.longdouble)) else None
 
 
 def _lp_margin(An: Array, time_limit: float | None = None) -> Array | None:
@@ -578,7 +580,8 @@ class ArnoldiSystem:
         large = self.n_points > 4 * BASIS_POINTS
         sub = self.points.spread_subset(BASIS_POINTS) if large else None
         self._v: Array | None = None
-        self._q0 = None
+        # the guess, its floor and the largest weight (None: weights from values)
+        self._q0: tuple[Callable[[Array], Array], float, float] | None = None
         if callable(q0):
             at = self.t if sub is None else self.t[sub]
             with np.errstate(all="ignore"):
@@ -624,7 +627,8 @@ class ArnoldiSystem:
         self._norms: Array | None = None
 
     def _weights(self, qv: Array) -> Array:
-        _, floor, vmax = self._q0  # type: ignore[misc]
+        assert self._q0 is not None
+        _, floor, vmax = self._q0
         aq = np.abs(qv)
         aq = np.where(np.isfinite(aq), np.maximum(aq, floor), floor)
         return (1.0 / aq) / vmax
@@ -632,8 +636,9 @@ class ArnoldiSystem:
     def _v_at(self, pts: NDArray[np.int64]) -> Array:
         if self._v is not None:
             return self._v[pts]
+        assert self._q0 is not None  # no values at every point: the guess gives them
         with np.errstate(all="ignore"):
-            return self._weights(self._q0[0](self.t[pts]))  # type: ignore[index]
+            return self._weights(self._q0[0](self.t[pts]))
 
     @property
     def v(self) -> Array:
@@ -684,13 +689,15 @@ class ArnoldiSystem:
         smin = float(np.sqrt(max(ev[0], 0.0)))
         if smax > 0 and smin > 1e-6 * smax:
             return smin / smax, smin, smax
-        acc = None
+        acc: Array | None = None
         for start in range(0, pts.size, _CHUNK):
             sl = slice(start, start + _CHUNK)
             u, v = U[sl], V[sl]
             block = np.vstack([np.hstack([u, -lo_s[sl, None] * v]),
                                np.hstack([-u, hi_s[sl, None] * v])])
-            acc = np.linalg.qr(block if acc is None else np.vstack([acc, block]), mode="r")
+            acc = np.asarray(np.linalg.qr(block if acc is None else np.vstack([acc, block]),
+                                          mode="r"), dtype=np.float64)
+        assert acc is not None
         sv = np.linalg.svd(acc, compute_uv=False)
         return _delta_from(sv, (2 * pts.size, acc.shape[1]))
 
@@ -838,7 +845,8 @@ def sk_denominator(space: PolynomialSpace, seg: Segments, channel: int | Sequenc
     else:
         pick = np.arange(seg.n_points)
     t = t_all[pick]
-    lo, hi = seg.lo[np.ix_(pick, chans)], seg.hi[np.ix_(pick, chans)]
+    cols = np.asarray(chans, dtype=np.int64)
+    lo, hi = seg.lo[np.ix_(pick, cols)], seg.hi[np.ix_(pick, cols)]
     scale = segment_scales(lo, hi)
     d = 0.5 * (lo + hi) / scale
     v = np.ones(pick.size)

@@ -192,7 +192,9 @@ class Segments:
     def from_bounds(
         cls, x: ArrayLike, lo: ArrayLike, hi: ArrayLike, y: ArrayLike | None = None, **kw
     ) -> Segments:
-        return cls(x, lo, hi, y, **kw)
+        return cls(np.asarray(x, dtype=float), np.asarray(lo, dtype=float),
+                   np.asarray(hi, dtype=float), None if y is None else np.asarray(y, dtype=float),
+                   **kw)
 
     # -- views ----------------------------------------------------------------
     @property

@@ -80,7 +80,8 @@ def _clarabel(A: Array, b: Array) -> QPSolution:
     return QPSolution(kind, None, status, "clarabel")
 
 
-SOLVERS: dict[str, tuple[str, Callable[[Array, Array], QPSolution]]] = {
+# (description, solve(A, b[, time_limit=...]) -> QPSolution) per name
+SOLVERS: dict[str, tuple[str, Callable[..., QPSolution]]] = {
     "quadprog": ("quadprog", _quadprog),
     "daqp": ("daqp", _daqp),
     "clarabel": ("clarabel", _clarabel),

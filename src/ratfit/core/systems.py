@@ -140,6 +140,8 @@ class AppendedRows:
     # rows alone, as every infeasible one is, never evaluates a large grid)
     psi = _BuiltOnRead()
     phi = _BuiltOnRead()
+    _psi: Array | LazyRows  # what psi and phi hold until first read
+    _phi: Array | LazyRows
 
     def _counts(self) -> tuple[int, int]:
         return len(self._psi), len(self._phi)

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Iterable
-from typing import Any
+from typing import Any, overload
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -115,6 +115,16 @@ def check_order(lo: Array, hi: Array, where: str | None = None) -> None:
 
 
 # ----------------------------------------------------------------------------- scalars
+@overload
+def check_width(value: float, name: str, *, where: str | None = None, allow_none: bool = True,
+                positive: bool = False, below_one: bool = False) -> float: ...
+
+
+@overload
+def check_width(value: Any, name: str, *, where: str | None = None, allow_none: bool = True,
+                positive: bool = False, below_one: bool = False) -> float | None: ...
+
+
 def check_width(value: Any, name: str, *, where: str | None = None, allow_none: bool = True,
                 positive: bool = False, below_one: bool = False) -> float | None:
     """A segment width (``dt``, ``abs_width``, ...): a finite number >= 0 (> 0 if positive)."""

@@ -13,6 +13,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from ratfit.core.options import FitOptions
 from ratfit.core.results import FitResult
 from ratfit.core.segments import Segments
 from ratfit.fitting.search import RationalFitter
@@ -44,13 +45,14 @@ def run_addendum(
     (Arnoldi) formulation."""
     seg = addendum_segments()
     fits: dict[str, FitResult] = {}
-    common = {"solver": solver, "cross_check": cross_check, "jobs": jobs}
+    common = FitOptions(solver=solver, cross_check=cross_check, jobs=jobs)
     for basis in PAPER_TABLE:
-        fits[basis] = RationalFitter(
-            basis=basis, n=20, m=20, formulation="basis", **common
-        ).fit(seg).result_
-    seed_form = RationalFitter(basis="legendre", formulation="basis", **common).fit(seg).result_
-    minimal = RationalFitter(basis="legendre", formulation="arnoldi", **common).fit(seg).result_
+        fits[basis] = RationalFitter.from_options(common.replace(
+            basis=basis, n=20, m=20, formulation="basis")).fit(seg).result_
+    seed_form = RationalFitter.from_options(
+        common.replace(basis="legendre", formulation="basis")).fit(seg).result_
+    minimal = RationalFitter.from_options(
+        common.replace(basis="legendre", formulation="arnoldi")).fit(seg).result_
     return {"segments": seg, "fits": fits, "minimal": minimal, "minimal_seed_form": seed_form}
 
 

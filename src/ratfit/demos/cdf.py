@@ -25,7 +25,7 @@ def run_demo_cdf(outdir: Path, *, alpha: float = 0.3, samples: int = 100_000,
     fitter = MonotoneFitter(grid=200).fit(seg)
     res = fitter.result_
     out: dict[str, Any] = {"fitter": fitter, "result": res}
-    if not res.success:
+    if not res.success or res.rational is None:
         return out
     model = RationalCDF(res.rational)
     draws = model.sample(samples, np.random.default_rng(seed))

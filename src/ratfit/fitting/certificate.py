@@ -188,7 +188,7 @@ def _polish(An: Array, y: Array) -> Array:
 
 
 def farkas_certificate(
-    system: ConstraintSystem,
+    system: ConstraintSystem | ArnoldiSystem,
     n: int,
     m: int,
     *,
@@ -255,7 +255,7 @@ def certify(space: PolynomialSpace, seg: Segments, channel: int, n: int, m: int,
     from ratfit.core.qp import sk_denominator
 
     if formulation == "arnoldi":
-        system: ConstraintSystem = ArnoldiSystem(
+        system: ConstraintSystem | ArnoldiSystem = ArnoldiSystem(
             space, seg, channel, n, m, sk_denominator(space, seg, channel, n, m)
         )
     else:

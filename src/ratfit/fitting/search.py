@@ -29,11 +29,13 @@ solution", which is upward closed like plain feasibility.
 one whose values are most central in their segments (smallest
 max |r - y| / half-width).
 
-The engine (:class:`SearchEngine`) is configured by collaborators
+The engine (:class:`SearchEngine`) takes the checked options
+(:class:`~ratfit.core.options.FitOptions`) and its collaborators
 (:class:`SearchParts`): a system factory (which row systems to solve), a
 verifier (what counts as success) and the pole guard (where q > 0 is
-generated). Subclasses of :class:`RationalFitter` supply theirs through
-``_search_parts``.
+generated). Subclasses of :class:`RationalFitter` supply theirs through the one
+public hook :meth:`RationalFitter.search_parts`, and their own options through
+``options_type`` (a :class:`~ratfit.core.options.FitOptions` subclass).
 
 Independent QPs (speculative tests of the next columns, all splits of one
 total) run in a thread pool: the solvers release the GIL. Large multi-channel
@@ -52,7 +54,7 @@ import time
 from collections.abc import Callable, Iterable
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
-from typing import Protocol
+from typing import ClassVar, Protocol, Self
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -66,6 +68,7 @@ from ratfit.core.options import (  # noqa: F401  (re-exported: where they used t
     FORMULATIONS,
     SPLIT_RULES,
     STRATEGIES,
+    FitOptions,
     check_fit_params,
 )
 from ratfit.core.qp import (
@@ -148,6 +151,10 @@ class RationalFitter(Estimator):
         Seconds per channel; when they run out the search stops between splits
         and says so (status 1, or the smallest verified fit so far flagged as
         not proven minimal). None: no limit.
+    warm_start : bool, default True
+        Carry the binding rows of one split into the next split's active set
+        and start each channel's search at the previous channel's total. Only
+        the speed depends on it (the benchmarks and tests switch it off to compare).
 
     Attributes
     ----------
@@ -163,6 +170,8 @@ class RationalFitter(Estimator):
         The fitted segments.
     space_ : PolynomialSpace
         The basis, index set and domain of the fit.
+    options_ : FitOptions
+        The checked options the search ran with (an ``options_type``).
 
     Examples
     --------
@@ -174,10 +183,9 @@ class RationalFitter(Estimator):
     (True, 0.0)
     """
 
-    #: Warm starts (active sets carried across splits, the next channel's search
-    #: started at the previous channel's total). Only the speed depends on it;
-    #: the benchmarks and tests switch it off to compare.
-    _warm_start: bool = True
+    #: The class of this estimator's checked options: every constructor parameter
+    #: is one of its fields (subclasses with options of their own extend it).
+    options_type: ClassVar[type[FitOptions]] = FitOptions
     _hint: int | None = None
 
     def __init__(
@@ -201,6 +209,7 @@ class RationalFitter(Estimator):
         formulation: str = "auto",
         time_limit: float | None = DEFAULT_TIME_LIMIT,
         variable: str = "auto",
+        warm_start: bool = True,
     ) -> None:
         self.basis = basis
         self.index_set = index_set
@@ -220,10 +229,33 @@ class RationalFitter(Estimator):
         self.formulation = formulation
         self.time_limit = time_limit
         self.variable = variable
+        self.warm_start = warm_start
 
     # -- validation -------------------------------------------------------------------
-    def _validate(self, seg: Segments) -> PolynomialSpace:
-        p = check_fit_params({k: getattr(self, k) for k in FIT_OPTIONS})
+    @classmethod
+    def from_options(cls, options: FitOptions) -> Self:
+        """The estimator of checked ``options`` (an ``options_type``)."""
+        if type(options) is not cls.options_type:
+            raise TypeError(f"{cls.__name__} takes {cls.options_type.__name__}, "
+                            f"got {type(options).__name__}")
+        return cls(**options.params())
+
+    def options(self) -> FitOptions:
+        """The constructor parameters as checked options (InputError when one is bad)."""
+        return self.options_type.from_params(self.get_params(deep=False))
+
+    def prepare(self, seg: Segments) -> PolynomialSpace:
+        """Check the options, alone and against ``seg``, and keep them (``options_``);
+        returns the polynomial space of a fit of ``seg``. :meth:`fit` starts here;
+        callers that drive a :class:`SearchEngine` themselves do too."""
+        self.options_ = self.options()
+        return self._validate(seg, self.options_)
+
+    def _validate(self, seg: Segments, options: FitOptions | None = None) -> PolynomialSpace:
+        """The polynomial space of a fit of ``seg``, after every check of the options
+        against the data (one-line InputError)."""
+        opts = self.options() if options is None else options
+        p = opts.params()
         if p["formulation"] == "arnoldi" and seg.dim > 1 and p["index_set"] != "total":
             raise InputError("formulation 'arnoldi' needs index_set='total' in n-D")
         if p["max_total"] is None and p["min_total"] > DEFAULT_MAX_TOTAL:
@@ -258,11 +290,11 @@ class RationalFitter(Estimator):
                 "absolute floor (CLI: add --abs-width W next to --dt; each segment takes "
                 "the larger)"
             )
-        domain = seg.bounds() if self.domain is None else np.asarray(self.domain, float)
+        domain = seg.bounds() if opts.domain is None else np.asarray(opts.domain, float)
         domain = np.asarray(domain, dtype=float).reshape(-1, 2)
         if domain.shape[0] != seg.dim:
             raise InputError(f"domain has {domain.shape[0]} dimension(s), data has {seg.dim}")
-        if seg.n_points == 1 and self.domain is None:
+        if seg.n_points == 1 and opts.domain is None:
             raise InputError("a single data point has no domain: give domain bounds")
         outside = (seg.x < domain[:, 0]) | (seg.x > domain[:, 1])
         if outside.any():
@@ -272,15 +304,16 @@ class RationalFitter(Estimator):
 
         # n-D: no degree above what an axis's distinct values can carry (grids).
         caps = axis_degree_caps(seg.x) if seg.dim > 1 else None
-        return PolynomialSpace(self.basis, domain, self.index_set, caps,
-                               variable="log" if self.variable == "log" else "x")
+        return PolynomialSpace(opts.basis, domain, opts.index_set, caps,
+                               variable="log" if opts.variable == "log" else "x")
 
     def _log_space(self, space: PolynomialSpace, seg: Segments) -> PolynomialSpace | None:
         """The log-x space that variable="auto" also tries, or None."""
         dom = space.domain
-        plain = type(self)._search_parts is RationalFitter._search_parts
-        if (self.variable != "auto" or not plain or seg.dim != 1 or self.n is not None
-                or self.total is not None or dom[0, 0] <= 0):
+        o = self.options_
+        plain = type(self).search_parts is RationalFitter.search_parts
+        if (o.variable != "auto" or not plain or seg.dim != 1 or o.n is not None
+                or o.total is not None or dom[0, 0] <= 0):
             return None
         # Many decades means many points there: a tenth of them more than three decades
         # below the largest x (one point near 0 on a linear grid does not count).
@@ -298,7 +331,7 @@ class RationalFitter(Estimator):
         lg = self._fit_channel(log_space, seg, j, alone=alone)
         if not lg.success:
             return self._fit_channel(space, seg, j, spent=lg.seconds, alone=alone)
-        if lg.n + lg.m <= int(self.min_total):
+        if lg.n + lg.m <= self.options_.min_total:
             return lg
         xs = self._fit_channel(space, seg, j, max_total=lg.n + lg.m - 1, spent=lg.seconds,
                                alone=alone)
@@ -307,7 +340,7 @@ class RationalFitter(Estimator):
     def _channel_threads(self, seg: Segments) -> int:
         """How many channels are searched at once: one per thread (up to ``jobs``)
         for large multi-channel data, else 1 (channels in turn, splits in threads)."""
-        jobs = int(self.jobs or os.cpu_count() or 1)
+        jobs = int(self.options_.jobs or os.cpu_count() or 1)
         if jobs <= 1 or seg.n_channels <= 1 or seg.n_points < CHANNEL_THREADS_POINTS:
             return 1
         return min(jobs, seg.n_channels)
@@ -353,9 +386,14 @@ class RationalFitter(Estimator):
         """Take in :meth:`_channel_state` of every channel, in channel order."""
 
     # -- collaborators of the search engine (subclasses: monotone CDFs, BRDFs) ---------
-    def _search_parts(self, space: PolynomialSpace, seg: Segments) -> SearchParts:
-        """The engine's collaborators for this data: which systems, which verifier."""
-        form = self.formulation
+    def search_parts(self, space: PolynomialSpace, seg: Segments) -> SearchParts:
+        """The engine's collaborators for this data: which systems, which verifier.
+
+        The one extension point of a fitter: a subclass (monotone CDFs, BRDFs)
+        returns its own systems, verifier, pole guard or repair here; the engine
+        gets them and the checked options (``options_``), never the fitter.
+        """
+        form = self.options_.formulation
         if form == "auto":
             form = "arnoldi" if seg.dim == 1 or space.index_set == "total" else "basis"
         systems: SystemFactory = ArnoldiSystems() if form == "arnoldi" else SeedSystems()
@@ -366,7 +404,7 @@ class RationalFitter(Estimator):
         """Fit every channel of ``segments``; returns self."""
         if not isinstance(segments, Segments):
             raise TypeError(f"fit() takes a Segments object, got {type(segments).__name__}")
-        space = self._validate(segments)
+        space = self.prepare(segments)
         self.space_ = space
         self.segments_ = segments
         # Values beyond ~1e150 or below ~1e-150 overflow the QP's squares: such
@@ -384,7 +422,7 @@ class RationalFitter(Estimator):
             else:
                 results = [self._fit_either(space, log_space, work, j)
                            for j in range(segments.n_channels)]
-        verifier = self._search_parts(space, segments).verifier
+        verifier = self.search_parts(space, segments).verifier
         self.results_ = [
             unscale_result(r, segments, j, float(f), verifier)
             for j, (r, f) in enumerate(zip(results, factors, strict=True))
@@ -423,37 +461,36 @@ class RationalFitter(Estimator):
             )
         return self
 
-    def _resolved_active_set(self) -> bool | None:
-        """The active-set mode a fit uses (subclasses may choose one; never stored back)."""
-        return self.active_set
-
     def _fit_channel(self, space: PolynomialSpace, seg: Segments, j: int,
                      max_total: int | None = None, spent: float = 0.0,
                      alone: bool = False) -> FitResult:
         """``alone``: the channel runs in a thread beside others: its splits one at
         a time, no hint from (or to) another channel."""
         t0 = time.perf_counter()
-        run = SearchEngine(self, space, seg, j, jobs=1 if alone else None)
-        if self.time_limit is not None:
+        o = self.options_
+        deadline = None
+        if o.time_limit is not None:
             # ``spent``: seconds this channel already used in another variable; the
             # second search still gets a quarter of the budget.
-            limit = float(self.time_limit)
-            run.deadline = t0 + max(limit - spent, 0.25 * limit)
-        if self.n is not None:
-            lo_t = hi_t = int(self.n) + int(self.m)  # type: ignore[arg-type]
-        elif self.total is not None:
-            lo_t = hi_t = int(self.total)
+            deadline = t0 + max(o.time_limit - spent, 0.25 * o.time_limit)
+        run = SearchEngine(o, self.search_parts(space, seg), space, seg, j,
+                           jobs=1 if alone else None, deadline=deadline,
+                           cancel=getattr(self, "_cancel", None))
+        if o.n is not None and o.m is not None:
+            lo_t = hi_t = o.n + o.m
+        elif o.total is not None:
+            lo_t = hi_t = o.total
         else:
-            lo_t = int(self.min_total)
-            hi_t = int(max_total or self.max_total or DEFAULT_MAX_TOTAL)
+            lo_t = o.min_total
+            hi_t = int(max_total or o.max_total or DEFAULT_MAX_TOTAL)
         try:
-            if self.n is not None:
-                best = run.fixed(int(self.n), int(self.m))  # type: ignore[arg-type]
-            elif self.total is not None:
+            if o.n is not None and o.m is not None:
+                best = run.fixed(o.n, o.m)
+            elif o.total is not None:
                 best = run.all_splits(lo_t)
             else:
-                best = run.exhaustive(lo_t, hi_t) if self.strategy == "exhaustive" else (
-                    run.staircase(lo_t, hi_t, start=self._hint if self._warm_start
+                best = run.exhaustive(lo_t, hi_t) if o.strategy == "exhaustive" else (
+                    run.staircase(lo_t, hi_t, start=self._hint if o.warm_start
                                   and not alone else None)
                 )
         except _OutOfTime:
@@ -528,7 +565,9 @@ class SearchParts:
     ``constraint_points``, when given, counts the points the verifier has added
     to the split systems' constraints (constraint generation); a split whose
     candidate was rejected while that count grew is solved again with them, up
-    to ``regenerate`` times.
+    to ``regenerate`` times. ``active_set``, when not None, is the active-set
+    mode the systems need in place of the options' (the monotone "max" form
+    starts from an active set by construction).
     """
 
     systems: SystemFactory
@@ -539,6 +578,7 @@ class SearchParts:
                      tuple[RationalFunction, Verification] | None] | None = None
     constraint_points: Callable[[], int] | None = None
     regenerate: int = 2
+    active_set: bool | None = None
 
 
 def fit(segments: Segments, **params) -> FitResult:
@@ -585,28 +625,36 @@ Candidate = tuple[Attempt, RationalFunction | None, Verification | None]
 class SearchEngine:
     """One channel's search: cached attempts and their verifications.
 
-    Options (solver, cross check, active set, jobs, callback, split rule) are
-    read from ``fitter``; the collaborators (system factory, verifier, pole
-    guard) from ``parts`` (default: ``fitter._search_parts``).
+    ``options`` (solver, cross check, active set, jobs, callback, split rule, warm
+    start, time limit) are the checked options of the fit; ``parts`` its
+    collaborators (system factory, verifier, pole guard, repair). ``jobs``
+    overrides ``options.jobs`` (1: a channel searched beside others);
+    ``deadline`` is a ``time.perf_counter()`` value after which the search stops
+    between splits; ``cancel``, once set, stops it at the next split (Ctrl-C in
+    another channel's thread).
     """
 
-    def __init__(self, fitter: RationalFitter, space: PolynomialSpace, seg: Segments, j: int,
-                 parts: SearchParts | None = None, jobs: int | None = None):
-        self.f = fitter
+    def __init__(self, options: FitOptions, parts: SearchParts, space: PolynomialSpace,
+                 seg: Segments, j: int, *, jobs: int | None = None,
+                 deadline: float | None = None, cancel: threading.Event | None = None):
+        self.options = options
         self.space = space
         self.seg = seg
         self.channel = j
-        self.parts = parts if parts is not None else fitter._search_parts(space, seg)
+        self.parts = parts
         self.system = self.parts.systems.channel(space, seg, j)
         self.cache: dict[tuple[int, int], Candidate] = {}
         self.second_opinion = False
         self.warm: NDArray[np.int64] | None = None
         self.infeasible: list[tuple[int, int]] = []
-        self.jobs = int(jobs or fitter.jobs or os.cpu_count() or 1)
-        self.active_set = fitter._resolved_active_set()
-        self.deadline: float | None = None
+        self.jobs = int(jobs or options.jobs or os.cpu_count() or 1)
+        self.active_set = parts.active_set if parts.active_set is not None \
+            else options.active_set
+        self.deadline = deadline
+        self.cancel = cancel
         # distinct points, from the system's sort order (np.unique on rows is slow)
-        srt = self.system.t[self.system._order]
+        order = getattr(self.system, "_order", None)
+        srt = self.system.t[np.lexsort(self.system.t.T[::-1]) if order is None else order]
         self.cap = 1 + int(np.count_nonzero(np.any(srt[1:] != srt[:-1], axis=1)))
         grid = self.parts.pole_grid
         if grid is None:
@@ -621,10 +669,10 @@ class SearchEngine:
                                         like=self.system)
 
     def _solve(self, system: RowSystem, n: int, m: int, form: str) -> Candidate:
-        warm = self.warm if self.f._warm_start else None
+        warm = self.warm if self.options.warm_start else None
         att, system = solve_pole_free(
-            system, n, m, cuts=self.cuts, solver=self.f.solver,
-            cross_check=self.f.cross_check, active_set=self.active_set, warm_rows=warm,
+            system, n, m, cuts=self.cuts, solver=self.options.solver,
+            cross_check=self.options.cross_check, active_set=self.active_set, warm_rows=warm,
             deadline=self.deadline,
         )
         if att.active_rows is not None:
@@ -676,6 +724,7 @@ class SearchEngine:
             if (att.timed_out or att.status != "feasible" or ver is None or ver.verified
                     or ver.n_violations or not np.isfinite(ver.linf)):
                 break
+            assert count is not None  # again_at_most is 0 without it
             now = count()
             if now <= before or (self.deadline is not None
                                  and time.perf_counter() > self.deadline):
@@ -732,8 +781,7 @@ class SearchEngine:
         todo = [s for s in splits if s not in self.cache]
         if not todo:
             return
-        cancel = getattr(self.f, "_cancel", None)
-        if cancel is not None and cancel.is_set():
+        if self.cancel is not None and self.cancel.is_set():
             raise KeyboardInterrupt  # another channel's thread was interrupted
         if self.cache and self.deadline is not None and time.perf_counter() > self.deadline:
             raise _OutOfTime
@@ -755,8 +803,8 @@ class SearchEngine:
             self.cache[s] = out
             if out[0].status == "infeasible":
                 self.infeasible.append(s)
-            if self.f.callback is not None:
-                self.f.callback(out[0])
+            if self.options.callback is not None:
+                self.options.callback(out[0])
         if cut:
             raise _OutOfTime
 
@@ -764,10 +812,17 @@ class SearchEngine:
         """Threads pay off only when QPs are slow: on small problems the Python
         overhead between solver calls holds the GIL and two threads run slower
         than one (measured in benchmarks/bench_core.py). With ``jobs=None`` the
-        pool is used once the QPs so far average more than 20 ms."""
-        if self.jobs <= 1:
+        pool is used once the QPs so far average more than 20 ms.
+
+        A verifier that learns from each candidate (``parts.constraint_points``:
+        the BRDF validity points that later splits carry) makes each split depend
+        on the ones verified before it, so its splits run one at a time, in the
+        walk's order: splits tested side by side took those points in whatever
+        order their threads finished, and the same fit of cayman.brdf gave other
+        coefficients (and 3+7 instead of 1+8 for R) from run to run."""
+        if self.jobs <= 1 or self.parts.constraint_points is not None:
             return False
-        if self.f.jobs is not None:
+        if self.options.jobs is not None:
             return True
         secs = [c[0].seconds for c in self.cache.values()]
         return bool(secs) and sum(secs) / len(secs) > 0.02
@@ -824,7 +879,8 @@ class SearchEngine:
         total = t0
         while above is None and total <= hi:
             width = self._batch_width()
-            probes, t, st = [], total, step
+            probes: list[tuple[int, int]] = []
+            t, st = total, step
             while len(probes) < width and t <= hi:
                 probes.append(_balanced(t))
                 # the last total hi is always tested: no jump past the range
@@ -878,7 +934,7 @@ class SearchEngine:
         m = 1
         target = best[0] + best[1] - 1
         while target >= lo:
-            cols = []
+            cols: list[tuple[int, int]] = []
             mm = m
             width = self._batch_width()
             while len(cols) < width and target - mm >= 1:
@@ -904,7 +960,7 @@ class SearchEngine:
             else:
                 m = mm
         tot = best[0] + best[1]
-        if self.f.split_rule == "error":
+        if self.options.split_rule == "error":
             splits = [(tot - k, k) for k in range(1, tot)]
             self.test_many(splits)
             return self._choose([s for s in splits if self.ok(s)])
@@ -927,7 +983,7 @@ class SearchEngine:
     def _choose(self, good: list[tuple[int, int]]) -> list[tuple[int, int]]:
         if not good:
             return []
-        if self.f.split_rule == "error":
+        if self.options.split_rule == "error":
             return [min(good, key=lambda s: (self._centrality(s), s[1]))]
         return [min(good, key=lambda s: s[1])]
 
@@ -972,7 +1028,7 @@ class SearchEngine:
                 span = f"the {len(self.cache)} (n, m) split(s) tested with {span}"
                 from ratfit.fitting.certificate import search_proof
 
-                limit = self.f.time_limit
+                limit = self.options.time_limit
                 proof = search_proof(self, time_limit=60.0 if limit is None else
                                      min(60.0, max(5.0, 0.25 * float(limit)))) if certify else None
                 if proof is not None and proof["checked"]:  # exact: a proof
@@ -1008,7 +1064,7 @@ class SearchEngine:
             active_set_size=att.active_set_size,
             qp_solves=qp_solves,
             seconds=secs,
-            solver=self.f.solver,
+            solver=self.options.solver,
             decided_by=att.decided_by,
             solver_status=att.solver_status,
             formulation=att.formulation,
@@ -1021,7 +1077,7 @@ class SearchEngine:
     def timed_out(self, lo: int, hi: int, secs: float) -> FitResult:
         """The result when the time budget ran out: the smallest verified fit so far
         (not proven minimal), else status 1 without any claim of impossibility."""
-        limit = float(self.f.time_limit)  # type: ignore[arg-type]
+        limit = float(self.options.time_limit or 0.0)
         good = sorted((s for s in self.cache if self.ok(s)), key=lambda s: (sum(s), s[1]))
         tried = max((sum(s) for s in self.cache), default=lo)
         note = (f"time limit of {limit:g} s reached after {len(self.cache)} split(s), "

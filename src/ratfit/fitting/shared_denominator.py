@@ -30,12 +30,13 @@ check) reported infeasible, the same standard as the single-channel search.
 
 from __future__ import annotations
 
+import dataclasses
 import threading
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, ClassVar
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -43,6 +44,14 @@ from numpy.typing import ArrayLike, NDArray
 from ratfit.core.arnoldi import ArnoldiBasis
 from ratfit.core.bases import PolynomialSpace
 from ratfit.core.estimator import Estimator
+from ratfit.core.options import (
+    DEFAULT_TIME_LIMIT,
+    FIT_OPTIONS,
+    FitOptions,
+    Option,
+    check_options_class,
+    extend_spec,
+)
 from ratfit.core.qp import (
     Attempt,
     denominator_weights,
@@ -58,10 +67,62 @@ from ratfit.core.verify import Verification, verify
 from ratfit.errors import InputError
 from ratfit.fitting.search import RationalFitter
 
-__all__ = ["SharedDenominatorFitter", "SharedFit", "SharedSystem", "shared_sk_denominator"]
+__all__ = ["SHARED_OPTIONS", "SharedDenominatorFitter", "SharedFit", "SharedOptions",
+           "SharedSystem", "shared_sk_denominator"]
 
 Array = NDArray[np.float64]
 Sizes = tuple[int, ...]
+
+#: The options of a shared-denominator fit: the fitter's and the largest sizes searched
+#: (``jobs`` None: one thread).
+SHARED_OPTIONS = extend_spec(
+    FIT_OPTIONS,
+    Option("max_n", "int", 60, "Largest numerator tried per channel.", minimum=1),
+    Option("max_m", "int", 30, "Largest shared denominator tried.", minimum=1),
+)
+# Options of the single-channel search that mean nothing here, with why: refused
+# when they differ from their defaults (never silently ignored).
+_NOT_HERE = {
+    "n": "the numerator sizes are searched (m alone fixes the shared denominator)",
+    "total": "the numerator sizes are searched (m alone fixes the shared denominator)",
+    "min_total": "the search minimises sum(n) + m from the smallest sizes up",
+    "max_total": "the sizes are bounded by max_n and max_m",
+    "strategy": "the shared search has its own walk over m",
+    "split_rule": "the shared search keeps the smallest sum(n) + m",
+}
+
+
+@dataclass(frozen=True)
+class SharedOptions(FitOptions):
+    """The checked options of :class:`SharedDenominatorFitter` (:data:`SHARED_OPTIONS`).
+
+    ``m`` alone fixes the shared denominator; ``n``, ``total``, ``min_total``,
+    ``max_total``, ``strategy``, ``split_rule``, ``variable="log"`` and
+    ``formulation="basis"`` are refused (one line saying why): the search has
+    its own walk in x with data-orthonormal bases.
+    """
+
+    SPEC: ClassVar = SHARED_OPTIONS
+
+    max_n: int = 60
+    max_m: int = 30
+
+    def _check_together(self, where: str | None) -> None:
+        def at(msg: str) -> str:
+            return f"{where}: {msg}" if where else msg
+
+        for key, why in _NOT_HERE.items():
+            if getattr(self, key) != self.SPEC[key].default:
+                raise InputError(at(f"a shared denominator does not take {key}: {why}"))
+        if self.variable == "log":
+            raise InputError(at("a shared denominator is fitted in x, not log x: "
+                                "give variable 'x' or 'auto'"))
+        if self.formulation == "basis":
+            raise InputError(at("a shared denominator uses data-orthonormal bases: give "
+                                "formulation 'arnoldi' or 'auto'"))
+
+
+check_options_class(SharedOptions)
 
 
 def shared_sk_denominator(space: PolynomialSpace, seg: Segments, n: Sizes, m: int,
@@ -244,8 +305,14 @@ class SharedDenominatorFitter(Estimator):
 
     Parameters
     ----------
-    basis, index_set, domain, solver, cross_check, callback
-        As for :class:`~ratfit.fitting.search.RationalFitter`.
+    basis, index_set, domain, solver, cross_check, callback, active_set, formulation, \
+variable, warm_start
+        As for :class:`~ratfit.fitting.search.RationalFitter` (``variable`` "x" or
+        "auto": a shared denominator is fitted in x; ``formulation`` "arnoldi" or
+        "auto": data-orthonormal bases).
+    n, total, min_total, max_total, strategy, split_rule
+        The single-channel search's; refused unless at their defaults (the sizes
+        are searched here, bounded by ``max_n`` and ``max_m``).
     m : int, optional
         Fix the denominator size (then only the numerators are searched).
     max_n : int, default 60
@@ -254,6 +321,9 @@ class SharedDenominatorFitter(Estimator):
         Largest denominator tried.
     jobs : int, default 1
         Threads for the per-channel bisections.
+    time_limit : float, optional, default 120
+        Seconds for the whole search; when they run out it stops between QPs with
+        the smallest verified fit so far (not proven minimal) or none.
 
     Attributes
     ----------
@@ -276,32 +346,49 @@ class SharedDenominatorFitter(Estimator):
     (True, 2)
     """
 
+    options_type: ClassVar[type[SharedOptions]] = SharedOptions
+
     def __init__(self, *, basis: str = "legendre", index_set: str = "total",
                  domain: ArrayLike | None = None, m: int | None = None, max_n: int = 60,
                  max_m: int = 30, solver: str = "quadprog", cross_check: str = "orth",
                  jobs: int | None = 1,
-                 callback: Callable[[Attempt], None] | None = None) -> None:
+                 callback: Callable[[Attempt], None] | None = None,
+                 time_limit: float | None = DEFAULT_TIME_LIMIT, n: int | None = None,
+                 total: int | None = None, min_total: int = 2, max_total: int | None = None,
+                 strategy: str = "staircase", split_rule: str = "min-m",
+                 active_set: bool | None = None, formulation: str = "auto",
+                 variable: str = "auto", warm_start: bool = True) -> None:
         self.basis, self.index_set, self.domain = basis, index_set, domain
         self.m, self.max_n, self.max_m = m, max_n, max_m
         self.solver, self.cross_check = solver, cross_check
         self.jobs, self.callback = jobs, callback
+        self.time_limit = time_limit
+        self.n, self.total, self.min_total, self.max_total = n, total, min_total, max_total
+        self.strategy, self.split_rule, self.active_set = strategy, split_rule, active_set
+        self.formulation, self.variable, self.warm_start = formulation, variable, warm_start
+
+    @classmethod
+    def from_options(cls, options: SharedOptions) -> SharedDenominatorFitter:
+        """The fitter of checked ``options`` (the options it cannot honour were refused
+        when they were made)."""
+        return cls(**options.params())
+
+    def options(self) -> SharedOptions:
+        """The constructor parameters as checked options (InputError when one is bad)."""
+        return self.options_type.from_params(self.get_params(deep=False))
 
     def fit(self, seg: Segments) -> SharedDenominatorFitter:
         """Search the shared-denominator sizes for ``seg``; returns self."""
         if not isinstance(seg, Segments):
             raise TypeError(f"fit() takes a Segments object, got {type(seg).__name__}")
-        for name in ("max_n", "max_m"):
-            v = getattr(self, name)
-            if not isinstance(v, int) or isinstance(v, bool) or v < 1:
-                raise InputError(f"{name} must be an integer >= 1, got {v!r}")
-        if self.m is not None and (not isinstance(self.m, int) or self.m < 1):
-            raise InputError(f"m must be an integer >= 1, got {self.m!r}")
-        helper = RationalFitter(basis=self.basis, index_set=self.index_set, domain=self.domain,
-                                solver=self.solver, cross_check=self.cross_check)
-        space = helper._validate(seg)  # the same checks and messages as a normal fit
+        self.options_ = opts = self.options()
+        plain = FitOptions(**{k: getattr(opts, k) for k in ("basis", "index_set", "domain",
+                                                             "solver", "cross_check")})
+        # the same checks and messages as a normal fit
+        space = RationalFitter.from_options(plain).prepare(seg)
         if seg.dim > 1 and space.index_set != "total":
             raise InputError("a shared denominator needs index_set='total' in n-D")
-        self.result_ = _SharedSearch(self, space, seg).run()
+        self.result_ = _SharedSearch(opts, space, seg).run()
         self.results_ = self.result_.results
         self.segments_ = seg
         return self
@@ -315,14 +402,20 @@ class SharedDenominatorFitter(Estimator):
         return self.result_.success
 
 
+class _OutOfTime(Exception):
+    """The search's time budget ran out (raised before a new QP)."""
+
+
 class _SharedSearch:
-    def __init__(self, f: SharedDenominatorFitter, space: PolynomialSpace, seg: Segments):
-        self.f, self.space, self.seg = f, space, seg
+    def __init__(self, options: SharedOptions, space: PolynomialSpace, seg: Segments):
+        self.f, self.space, self.seg = options, space, seg
         self.K = seg.n_channels
         self.cache: dict[tuple[Sizes, int], _Trial] = {}
         self.lock = threading.Lock()
+        self.deadline = None if options.time_limit is None else (
+            time.perf_counter() + options.time_limit)
         # More coefficients than points cannot be independent on the data.
-        self.cap = min(f.max_n, seg.n_points)
+        self.cap = min(options.max_n, seg.n_points)
         grid = domain_grid(space.dim, seg.n_points)
         self.cuts = lambda rf: denominator_cuts(rf, grid)
 
@@ -332,6 +425,8 @@ class _SharedSearch:
             if key in self.cache:
                 return self.cache[key]
         t0 = time.perf_counter()
+        if self.cache and self.deadline is not None and t0 > self.deadline:
+            raise _OutOfTime
         try:
             q0 = shared_sk_denominator(self.space, self.seg, n, m)
             system = SharedSystem(self.space, self.seg, n, m, q0)
@@ -380,11 +475,41 @@ class _SharedSearch:
 
     def run(self) -> SharedFit:
         t0 = time.perf_counter()
+        self.best: tuple[Sizes, int] | None = None
+        self.bounds: dict[int, int] = {}
+        self.big = min(8, self.cap)
+        try:
+            self._walk()
+        except _OutOfTime:
+            # the smallest verified trial so far (each one is a verified fit)
+            good = [k for k, t in self.cache.items() if t.ok]
+            best = min(good, key=lambda k: (sum(k[0]) + k[1], k[1])) if good else None
+            out = self._result(best, self.bounds, self.big, time.perf_counter() - t0)
+            return self._timed_out(out)
+        return self._result(self.best, self.bounds, self.big, time.perf_counter() - t0)
+
+    def _timed_out(self, out: SharedFit) -> SharedFit:
+        """The result when the time budget ran out: the smallest verified fit so far,
+        not proven minimal, else no fit without any claim of impossibility."""
+        limit = float(self.f.time_limit or 0.0)
+        note = f"time limit of {limit:g} s reached after {len(self.cache)} QP test(s)"
+        if out.success:
+            results = [dataclasses.replace(r, time_limited=True,
+                                           message=f"{r.message}; {note}: the total may not "
+                                                   "be minimal") for r in out.results]
+        else:
+            results = [dataclasses.replace(
+                r, time_limited=True, status=1, success=False,
+                message=f"{STATUS_MESSAGES[1]}: {note}; no shared-denominator fit verified "
+                        "(not a proof that none exists; raise the time limit)")
+                for r in out.results]
+        return dataclasses.replace(out, results=results, proven=False)
+
+    def _walk(self) -> None:
         K = self.K
-        best: tuple[Sizes, int] | None = None
         best_total = 10**9
-        bounds: dict[int, int] = {}
-        big = min(8, self.cap)
+        bounds = self.bounds
+        big = self.big
         prev: list[int] | None = None
         ms = [self.f.m] if self.f.m is not None else range(1, self.f.max_m + 1)
         for m in ms:
@@ -392,7 +517,7 @@ class _SharedSearch:
                 break
             # A large N that fits at this m (kept across m: monotone in m).
             while not self.ok((big,) * K, m) and big < self.cap:
-                big = min(2 * big, self.cap)
+                big = self.big = min(2 * big, self.cap)
                 prev = None
             if not self.ok((big,) * K, m):
                 continue
@@ -411,9 +536,7 @@ class _SharedSearch:
                 n = self._repair(n, m, big)
             n = self._shrink(n, m)
             if sum(n) + m < best_total:
-                best, best_total = (n, m), sum(n) + m
-        secs = time.perf_counter() - t0
-        return self._result(best, bounds, big, secs)
+                self.best, best_total = (n, m), sum(n) + m
 
     def _repair(self, n: Sizes, m: int, big: int) -> Sizes:
         """The lower-bound vector ``n`` is infeasible: raise one channel, the one
@@ -510,7 +633,3 @@ class _SharedSearch:
             channel=self.seg.names[j], history=(), disagreements=disagreements,
         )
 
-
-def independent_total(results: Sequence[FitResult]) -> int:
-    """Coefficients of independent per-channel fits: sum(n_c + m_c)."""
-    return sum(r.total for r in results)

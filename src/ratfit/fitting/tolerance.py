@@ -146,7 +146,9 @@ def best_width(
         t1 = time.perf_counter()
         seg = segments(w)
         factor = value_scales(seg)
-        run = SearchEngine(est, est._validate(seg), scale_segments(seg, factor), 0)
+        work = scale_segments(seg, factor)
+        space = est.prepare(seg)
+        run = SearchEngine(est.options_, est.search_parts(space, work), space, work, 0)
         chosen = run.fixed(int(n), int(m))
         att, _, ver = run.cache[chosen[0]]
         ok = ver is not None and ver.verified
@@ -196,6 +198,7 @@ def best_width(
     fit, seg = fits[hi]
     if certify_lower and lo > 0:
         seg_lo = segments(lo)
+        assert fit.rational is not None  # a verified fit
         cert = certify(fit.rational.space, seg_lo, 0, int(n), int(m),
                        formulation="arnoldi" if _arnoldi_ok(fit) else "basis")
     return ToleranceResult(hi, lo, absolute, fit, seg, cert, tuple(steps),

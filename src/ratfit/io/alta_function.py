@@ -78,7 +78,8 @@ class ALTAFunction:
             assert self.lo is not None and self.hi is not None
             t = 2.0 * (xa - self.lo) / (self.hi - self.lo) - 1.0
             deg = max(int(max(b.p_idx.max(), b.q_idx.max())) for b in self.rational)
-            vs = [_VANDER[self.basis](t[:, k], deg) for k in range(self.nx)]
+            vs: list[Array] = [np.asarray(_VANDER[self.basis](t[:, k], deg), dtype=np.float64)
+                               for k in range(self.nx)]
             for j, b in enumerate(self.rational):
                 with np.errstate(divide="ignore", invalid="ignore"):
                     out[:, j] += _poly_val(vs, b.p_idx, b.p) / _poly_val(vs, b.q_idx, b.q)

@@ -232,21 +232,21 @@ class HalfVectorSampler:
         wi below the horizon gives wo = (0, 0, 1) with pdf 0.
         """
         self._check()
-        wi = np.atleast_2d(np.asarray(wi, dtype=float))
-        u1 = np.clip(np.ravel(np.asarray(u1, dtype=float)), 0.0, 1.0 - 1e-12)
-        u2 = np.clip(np.atleast_2d(np.asarray(u2, dtype=float)), 0.0, 1.0)
-        n = len(wi)
+        w = np.atleast_2d(np.asarray(wi, dtype=float))
+        v1 = np.clip(np.ravel(np.asarray(u1, dtype=float)), 0.0, 1.0 - 1e-12)
+        v2 = np.clip(np.atleast_2d(np.asarray(u2, dtype=float)), 0.0, 1.0)
+        n = len(w)
         wo = np.zeros((n, 3))
         wo[:, 2] = 1.0
         c = float(self.cosine_weight)
-        cos_branch = u1 < c
+        cos_branch = v1 < c
         if cos_branch.any():
-            wo[cos_branch] = cosine_sample(u2[cos_branch])
-        fit = ~cos_branch & (wi[:, 2] > 0)
+            wo[cos_branch] = cosine_sample(v2[cos_branch])
+        fit = ~cos_branch & (w[:, 2] > 0)
         if fit.any():
-            u = (u1[fit] - c) / (1.0 - c)
-            wo[fit] = self._sample_fit(wi[fit], u, u2[fit])
-        pdf = self.pdf(wi, wo)
+            u = (v1[fit] - c) / (1.0 - c)
+            wo[fit] = self._sample_fit(w[fit], u, v2[fit])
+        pdf = self.pdf(w, wo)
         return wo, pdf
 
     def _sample_fit(self, wi: Array, u: Array, u2: Array) -> Array:

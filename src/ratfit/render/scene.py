@@ -8,7 +8,6 @@ bright rectangular "window" whose reflection shows the glossy lobe.
 
 from __future__ import annotations
 
-import sys
 import time
 from collections.abc import Callable
 
@@ -17,7 +16,7 @@ from numpy.typing import NDArray
 
 from ratfit.errors import InputError
 
-__all__ = ["SCENES", "environment_map", "render_image", "sphere_view", "stderr_progress"]
+__all__ = ["SCENES", "environment_map", "render_image", "sphere_view"]
 
 Array = NDArray[np.float64]
 SCENES = ("sphere", "sky", "point", "sphere-point", "furnace")
@@ -142,5 +141,3 @@ def render_image(material, *, size: int = 256, spp: int = 64, sampling: str = "f
     return acc / spp
 
 
-def stderr_progress(msg: str) -> None:
-    print(msg, file=sys.stderr, flush=True)

@@ -3,7 +3,7 @@
 Also the shared plumbing of ``ratfit plot``, ``ratfit report`` and
 ``ratfit brdf compare``: loading a fit file with its parametrization (if it is a
 BRDF fit), reading data in the fit's coordinates, and computing the same
-metrics (:func:`ratfit.brdf.analytic_models.brdf_metrics`) for rational and analytic fits.
+metrics (:func:`ratfit.brdf.analytic_models.channel_metrics`) for rational and analytic fits.
 """
 
 from __future__ import annotations
@@ -22,7 +22,7 @@ from ratfit.errors import InputError
 from ratfit.io.data import Dataset
 from ratfit.io.fitfile import SavedFit
 
-__all__ = ["LoadedFit", "compare_table", "load_data_for", "load_fit_any", "write_report"]
+__all__ = ["LoadedFit", "compare_table", "load_data_for", "write_report"]
 
 Array = NDArray[np.float64]
 
@@ -46,13 +46,14 @@ class LoadedFit:
     def channel_names(self) -> list[str]:
         return [c.name for c in self.saved.channels]
 
+    @classmethod
+    def load(cls, path: str | os.PathLike[str]) -> LoadedFit:
+        """A ratfit fit file; BRDF fits (through :mod:`ratfit.brdf`) keep their
+        parametrization (:func:`ratfit.export.code.load_any_fit`)."""
+        from ratfit.export.code import load_any_fit
 
-def load_fit_any(path: str | os.PathLike[str]) -> LoadedFit:
-    """A ratfit fit file; BRDF fits (through :mod:`ratfit.brdf`) keep their parametrization."""
-    from ratfit.export.code import load_any_fit
-
-    saved, bf = load_any_fit(path)
-    return LoadedFit(str(path), saved, bf)
+        saved, bf = load_any_fit(path)
+        return cls(str(path), saved, bf)
 
 
 def load_data_for(fit: LoadedFit, data_path: str | os.PathLike[str]) -> Dataset:
@@ -68,6 +69,7 @@ def load_data_for(fit: LoadedFit, data_path: str | os.PathLike[str]) -> Dataset:
                 raise InputError(
                     f"{data_path} has channels {list(ds.output_names)} but the fit has "
                     f"{fit.channel_names}")
+            assert ds.y is not None  # BRDF files have values
             ds = Dataset(ds.x, ds.y[:, keep], None if ds.lo is None else ds.lo[:, keep],
                          None if ds.hi is None else ds.hi[:, keep], ds.input_names,
                          tuple(ds.output_names[j] for j in keep), dict(ds.meta))
@@ -122,17 +124,16 @@ def segments_of(fit: LoadedFit, ds: Dataset):
 
 
 def rational_metrics(fit: LoadedFit, ds: Dataset) -> list[dict[str, Any]]:
-    from ratfit.brdf.analytic_models import brdf_metrics
+    from ratfit.brdf.analytic_models import channel_metrics
 
-    assert fit.brdf is not None
+    assert fit.brdf is not None and fit.param is not None and ds.y is not None
     pred = fit.brdf.eval_coords(ds.x)
     cos_l = data_dirs(fit.param, ds)[0][:, 2]
-    out = []
+    out: list[dict[str, Any]] = []
     for j, ch in enumerate(fit.saved.channels):
-        m = brdf_metrics(pred[:, j], ds.y[:, j], cos_l)
-        m.update({"name": "rational", "channel": ch.name, "coefficients": ch.rational.total,
-                  "detail": f"n={ch.rational.n}, m={ch.rational.m}"})
-        out.append(m)
+        out.append({**channel_metrics(pred[:, j], ds.y[:, j], cos_l), "name": "rational",
+                    "channel": ch.name, "coefficients": ch.rational.total,
+                    "detail": f"n={ch.rational.n}, m={ch.rational.m}"})
     return out
 
 
@@ -150,20 +151,21 @@ def model_fit_for(param: str, ds: Dataset, spec: str, *, starts: int = 6, seed: 
 
 def model_metrics(mf, param: str, ds: Dataset) -> list[dict[str, Any]]:
     """Metrics of an analytic fit on the data values as the file gives them."""
-    from ratfit.brdf.analytic_models import brdf_metrics
+    from ratfit.brdf.analytic_models import channel_metrics
 
+    assert ds.y is not None
     L, V = data_dirs(param, ds)
     pred = mf.eval_dirs(L, V)
     if cos_factor(ds):
         pred = pred * L[:, 2:3]
-    out = []
+    out: list[dict[str, Any]] = []
     for j in range(ds.n_channels):
-        m = brdf_metrics(pred[:, min(j, pred.shape[1] - 1)], ds.y[:, j], L[:, 2])
+        m = channel_metrics(pred[:, min(j, pred.shape[1] - 1)], ds.y[:, j], L[:, 2])
         p = mf.params[min(j, mf.n_channels - 1)]
-        m.update({"name": mf.name, "channel": ds.output_names[j], "coefficients": int(p.size),
-                  "detail": ", ".join(f"{n}={v:.4g}" for n, v in
-                                      zip(mf.model.param_names, p, strict=True))})
-        out.append(m)
+        out.append({**m, "name": mf.name, "channel": ds.output_names[j],
+                    "coefficients": int(p.size),
+                    "detail": ", ".join(f"{n}={v:.4g}" for n, v in
+                                        zip(mf.model.param_names, p, strict=True))})
     return out
 
 
@@ -219,7 +221,7 @@ def write_report(fit_path: str | os.PathLike[str], data_path: str | os.PathLike[
     from ratfit._version import __version__
     from ratfit.viz import pictures as pic
 
-    fit = load_fit_any(fit_path)
+    fit = LoadedFit.load(fit_path)
     ds = load_data_for(fit, data_path) if data_path is not None else None
     out = Path(outdir)
     res = ReportResult(out / "index.html")
@@ -229,7 +231,7 @@ def write_report(fit_path: str | os.PathLike[str], data_path: str | os.PathLike[
     # metrics first: a failure here leaves no folder behind
     model_fits = []
     if ds is not None:
-        if fit.is_brdf:
+        if fit.param is not None:
             res.metrics = rational_metrics(fit, ds)
             for spec in models:
                 mf = model_fit_for(fit.param, ds, spec)
@@ -249,8 +251,9 @@ def write_report(fit_path: str | os.PathLike[str], data_path: str | os.PathLike[
                                                     y=dy, lo=lo, hi=hi, channel=j,
                                                     names=names)))
         if ds is not None:
+            assert ds.y is not None
             pics.append((f"channel {fit.channel_names[j]}: signed error at every data point",
-                         pic.plot_error(fit.saved, out / f"error_{j}.png", dx, dy, lo=lo,
+                         pic.plot_error(fit.saved, out / f"error_{j}.png", ds.x, ds.y, lo=lo,
                                         hi=hi, channel=j, names=names)))
     if fit.is_brdf:
         assert fit.param is not None
@@ -260,6 +263,7 @@ def write_report(fit_path: str | os.PathLike[str], data_path: str | os.PathLike[
             funcs[mf.name] = mf.eval_dirs
         data_fn = None
         if ds is not None:
+            assert ds.y is not None
             data_fn = pic.DataBRDF(ds.x, ds.y, fit.param, cos_factor=cf,
                                    fold_phi_d=bool(ds.meta.get("fold_phi_d")))
         pics.append(("BRDF against theta_h for several theta_d (phi_d = 90 deg)",
@@ -288,15 +292,15 @@ def write_report(fit_path: str | os.PathLike[str], data_path: str | os.PathLike[
 
 
 def _plain_metrics(fit: LoadedFit, ds: Dataset) -> list[dict[str, Any]]:
-    from ratfit.brdf.analytic_models import brdf_metrics
+    from ratfit.brdf.analytic_models import channel_metrics
 
+    assert ds.y is not None
     pred = fit.saved(ds.x)
-    out = []
+    out: list[dict[str, Any]] = []
     for j, ch in enumerate(fit.saved.channels):
-        m = brdf_metrics(pred[:, j], ds.y[:, j])
-        m.update({"name": "rational", "channel": ch.name, "coefficients": ch.rational.total,
-                  "detail": f"n={ch.rational.n}, m={ch.rational.m}"})
-        out.append(m)
+        out.append({**channel_metrics(pred[:, j], ds.y[:, j]), "name": "rational",
+                    "channel": ch.name, "coefficients": ch.rational.total,
+                    "detail": f"n={ch.rational.n}, m={ch.rational.m}"})
     return out
 
 

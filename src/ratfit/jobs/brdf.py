@@ -1,0 +1,321 @@
+"""The job behind ``ratfit brdf fit`` and each batch task on a BRDF file: the file read
+once, its frames chosen as the command always chose them, one report out."""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from ratfit.brdf.options import UNKNOWN_PARAMETRIZATION, BRDFOptions
+from ratfit.core.results import FitResult
+from ratfit.core.segments import Segments
+from ratfit.core.validation import check_choice
+from ratfit.errors import InputError
+from ratfit.io.data import Dataset
+from ratfit.jobs.common import (
+    Clock,
+    as_path,
+    check_channels,
+    check_count,
+    check_flag,
+    check_nonnegative,
+    results_summary,
+)
+
+__all__ = ["BRDFFitReport", "BRDFFitRequest", "fit_brdf_file"]
+
+#: The request's own keys in a flat settings mapping (the rest are BRDF fit options).
+REQUEST_KEYS = ("format", "parametrization", "dt", "abs_width", "floor_rel", "cosine", "clamp",
+                "channels", "color", "max_points", "output")
+COLORS = ("rgb", "xyz", "spectral")
+# 6-D Cartesian pairs of an isotropic material (Cornell files): 3-D angles carry the
+# same information with no constant column and far fewer coefficients.
+ISOTROPIC_DEFAULT = {"CARTESIAN": "ISOTROPIC_TV_TL_DPHI"}
+
+
+@dataclass(frozen=True)
+class BRDFFitRequest:
+    """What a fit of a measured BRDF file asks for.
+
+    Parameters
+    ----------
+    input : path
+        A MERL, ALTA, Cornell/pbrt, ASTM or EXR file.
+    options : BRDFOptions, default BRDFOptions()
+        The checked fit options (solver, sizes, time limit, ``polish``,
+        ``positive_q``, ``physical``); the job sets the parametrization.
+    format : str, optional
+        The file's format (default: from its content).
+    parametrization : str, optional
+        The frame to fit in (ALTA name); default: the file's own
+        (ISOTROPIC_TV_TL_DPHI for Cartesian pairs), and for isotropic angles the
+        half-vector frame first, keeping the better verified fit.
+    dt, abs_width, floor_rel : float, optional
+        Segment widths (default: the file's intervals, else ratfit's defaults).
+    cosine, clamp
+        Fit BRDF x cos(theta_l); raise values below ``clamp`` to it.
+    channels : tuple of str or int
+        Channels by name or 0-based index (default: all).
+    color : {"rgb", "xyz", "spectral"}, default "rgb"
+        How spectral (Cornell) data becomes channels.
+    max_points : int, optional
+        Fit a random subset of this many samples (verified on that subset only).
+    output : path, optional
+        The fit file to write, only when every channel is verified.
+    """
+
+    input: Path
+    options: BRDFOptions = field(default_factory=BRDFOptions)
+    format: str | None = None
+    parametrization: str | None = None
+    dt: float | None = None
+    abs_width: float | None = None
+    floor_rel: float | None = None
+    cosine: bool = False
+    clamp: float | None = None
+    channels: tuple[int | str, ...] = ()
+    color: str = "rgb"
+    max_points: int | None = None
+    output: Path | None = None
+
+    def __post_init__(self) -> None:
+        from ratfit.brdf.io import BRDF_FORMATS
+        from ratfit.brdf.parametrizations import get_parametrization
+
+        fix = object.__setattr__
+        fix(self, "input", as_path(self.input, "input"))
+        fix(self, "output", as_path(self.output, "output", allow_none=True))
+        if not isinstance(self.options, BRDFOptions):
+            raise InputError(f"options must be BRDFOptions, got {type(self.options).__name__}")
+        if (self.options.parametrization != UNKNOWN_PARAMETRIZATION
+                or self.options.used_coords is not None):
+            raise InputError("the job chooses the options' parametrization and coordinates: "
+                             "give the frame as the request's parametrization")
+        if self.format is not None:
+            fix(self, "format", check_choice(str(self.format).lower(), "format", BRDF_FORMATS))
+        if self.parametrization is not None:
+            fix(self, "parametrization", get_parametrization(self.parametrization).name)
+        for key in ("dt", "abs_width", "floor_rel", "clamp"):
+            fix(self, key, check_nonnegative(getattr(self, key), key))
+        fix(self, "cosine", check_flag(self.cosine, "cosine"))
+        fix(self, "channels", check_channels(self.channels))
+        fix(self, "color", check_choice(self.color, "color", COLORS))
+        fix(self, "max_points", check_count(self.max_points, "max_points", 2))
+
+    @classmethod
+    def from_settings(cls, input: str | Path, settings: Mapping[str, Any], *,
+                      where: str | None = None) -> BRDFFitRequest:
+        """The request of flat settings (the CLI's option names, a batch manifest's keys):
+        :data:`REQUEST_KEYS` plus BRDF fit options, checked."""
+        rest = dict(settings)
+        own = {k: rest.pop(k) for k in REQUEST_KEYS if k in rest}
+        return cls(input=Path(input), options=BRDFOptions.from_params(rest, where=where), **own)
+
+    def with_progress(self, callback: Any) -> BRDFFitRequest:
+        """The same request, reporting each tested split to ``callback`` (progress)."""
+        return replace(self, options=self.options.replace(callback=callback))
+
+
+@dataclass
+class BRDFFitReport:
+    """What a BRDF fit job did.
+
+    ``meta`` is the fit file's ``"brdf"`` block (parametrization, widths, the
+    candidates tried); ``notes()`` explains the choices ratfit made for the
+    request (the frame, the default widths), ``hint()`` what may give a fit
+    when none verified; ``document()`` and ``summary()`` as for
+    :class:`~ratfit.jobs.FitReport`.
+    """
+
+    request: BRDFFitRequest
+    results: list[FitResult]
+    segments: Segments
+    meta: dict[str, Any]
+    input_sha256: str
+    file_parametrization: str
+    frames_tried: int
+    subset: dict[str, int] | None = None
+    metrics: dict[str, dict[str, float]] | None = None
+    messages: list[str] = field(default_factory=list)
+    seconds: dict[str, float] = field(default_factory=dict)
+    written: Path | None = None
+
+    @property
+    def success(self) -> bool:
+        return bool(self.results) and all(r.success for r in self.results)
+
+    @property
+    def parametrization(self) -> str:
+        return str(self.meta["parametrization"])
+
+    def status(self) -> str | None:
+        """What "verified" covers for a subset fit (None for a fit of every sample)."""
+        from ratfit.brdf.fitter import subset_status
+
+        if not self.subset:
+            return None
+        if not self.success:
+            return "no verified fit"
+        return subset_status(self.subset["points"], self.subset["of"])
+
+    def document(self) -> dict[str, Any]:
+        """The fit file's document (InputError for an unverified fit)."""
+        from ratfit.io.fitfile import fit_document
+
+        req = self.request
+        return fit_document(self.results, extra={"brdf": self.meta}, provenance={
+            "input": str(req.input), "input_sha256": self.input_sha256,
+            "n_points": self.segments.n_points, "solver": req.options.solver,
+            "segments": {"dt": req.dt, "abs_width": req.abs_width, "floor_rel": req.floor_rel},
+        })
+
+    def summary(self) -> dict[str, Any]:
+        """The ``ratfit brdf fit --json`` object."""
+        doc = results_summary(self.results, self.written)
+        doc["parametrization"] = self.parametrization
+        doc["parametrization_candidates"] = self.meta["candidates"]
+        doc["n_points"] = self.segments.n_points
+        doc["verified_on"] = self.meta["verified_on"]
+        if self.subset:
+            doc["subset"] = dict(self.subset)
+            doc["status"] = self.status()
+        doc["metrics"] = self.metrics
+        return doc
+
+    def notes(self) -> list[str]:
+        """Why this frame and these widths, when ratfit chose them (one line each)."""
+        out = []
+        own, chosen = self.file_parametrization, ISOTROPIC_DEFAULT.get(self.file_parametrization)
+        if self.frames_tried == 1 and chosen and self.request.parametrization is None:
+            out.append(f"parametrization: {chosen} (chosen for the file's {own}; "
+                       "--param overrides)")
+        if self.frames_tried > 1:
+            out.append(f"parametrization: {self.parametrization} ("
+                       + "; ".join(_candidate_note(c) for c in self.meta["candidates"])
+                       + "; narrower segments, then fewer coefficients win; --param fixes one)")
+        if self.meta["segments"]["default"]:
+            out.append(_widths_note(self.meta["segments"]))
+        return out
+
+    def hint(self) -> str | None:
+        """What may give a verified fit, when none did at the default widths."""
+        widths = self.meta["segments"]
+        if self.success or not widths["default"]:
+            return None
+        limited = any(r.time_limited for r in self.results)
+        return (f"hint: no verified fit at the default segments (y +- {widths['dt']:.3g} y); "
+                f"wider ones (--dt {min(2 * float(widths['dt']), 1.0):.2g}) "
+                + ("or a longer --time-limit (the search ran out of time) " if limited else "")
+                + "may give one")
+
+
+def fit_brdf_file(request: BRDFFitRequest | str | Path) -> BRDFFitReport:
+    """Fit a measured BRDF file as ``request`` says: what ``ratfit brdf fit`` does.
+
+    The file is read once; each frame tried is a conversion of those samples,
+    and each frame's default widths are resolved once. ``fit_brdf_file(path)``
+    gives the fit of ``ratfit brdf fit path``, coefficient for coefficient
+    (a Cornell file in a 3-D angle frame, not its 6-D Cartesian pairs).
+    """
+    from ratfit.brdf.fitter import candidate_parametrizations, fit_brdf_auto
+    from ratfit.brdf.io import read_brdf, samples_dataset
+    from ratfit.io.fitfile import file_sha256, save_fit
+
+    req = request if isinstance(request, BRDFFitRequest) else BRDFFitRequest(Path(request))
+    clock = Clock()
+    with clock.phase("read"):
+        samples = read_brdf(req.input, fmt=req.format)
+        digest = file_sha256(req.input)
+    with clock.phase("frames"):
+        def frame(name: str | None) -> Dataset:
+            return samples_dataset(samples, name, channels=list(req.channels) or None,
+                                   color=req.color, max_points=req.max_points)
+
+        own_ds = frame(None)
+        own = str(own_ds.meta.get("param_in"))
+        first = req.parametrization or ISOTROPIC_DEFAULT.get(own, own)
+        o = req.options
+        # No frame and no fixed size given: the half-vector frame first, then the angles.
+        names = (first,) if req.parametrization or o.n is not None or o.total is not None \
+            else candidate_parametrizations(first)
+        datasets = [own_ds if name == own else frame(name) for name in names]
+    with clock.phase("fit"):
+        kw = {k: v for k, v in o.params().items() if k not in ("parametrization", "used_coords")}
+        fitter, seg, meta = fit_brdf_auto(datasets, dt=req.dt, abs_width=req.abs_width,
+                                          floor_rel=req.floor_rel, cosine=req.cosine,
+                                          clamp=req.clamp, **kw)
+    ds = next(d for d in datasets if d.meta.get("param_in") == meta["parametrization"])
+    report = BRDFFitReport(req, fitter.results_, seg, meta, digest, own, len(datasets),
+                           subset=ds.meta.get("subset"))
+    if report.success:
+        with clock.phase("metrics"):
+            report.metrics = _metrics(report)
+    if report.success and req.output is not None:
+        with clock.phase("write"):
+            save_fit(req.output, report.document())
+        report.written = req.output
+    report.seconds = clock.seconds
+    return report
+
+
+def _metrics(report: BRDFFitReport) -> dict[str, dict[str, float]]:
+    """Per-channel errors at the fitted samples (cos-weighted where theta_l is known)."""
+    from ratfit.brdf.fitter import brdf_metrics, cos_theta_l
+
+    seg = report.segments
+    pred = np.stack([r.rational(seg.x) for r in report.results  # type: ignore[misc]
+                     ], axis=1)
+    cl = None
+    if report.parametrization != UNKNOWN_PARAMETRIZATION:
+        try:
+            cl = cos_theta_l(seg.x, report.parametrization)
+        except Exception:  # parametrizations without theta_l: no cos-weighted metric
+            cl = None
+    return brdf_metrics(pred, seg.center, cl, seg.names)
+
+
+def _candidate_note(c: dict[str, Any]) -> str:
+    """One frame tried, in a few words."""
+    if c.get("narrowed_floor_from"):
+        got = (f"{c['coefficients']} coefficients" if c["verified"]
+               else "no verified fit, not kept")
+        return f"floor {c['floor_rel']:g}: {got}"
+    if c.get("widened_from"):
+        got = (f"{c['coefficients']} coefficients" if c["verified"] else
+               "no candidate either" if c.get("no_candidate") else "no verified fit")
+        return (f"{c['parametrization']} widened from {c['widened_from']:.3g} "
+                f"to {c['dt']:.3g}: {got}")
+    if c.get("skipped"):
+        return f"{c['parametrization']}: not tried, {c['skipped']}"
+    if c["verified"]:
+        return f"{c['parametrization']}: {c['coefficients']} coefficients"
+    up = f" up to {c['searched_up_to']} per channel" if c["searched_up_to"] else ""
+    if c.get("no_candidate"):
+        return (f"{c['parametrization']} at {c['dt']:.3g}: no candidate{up} "
+                "(every split infeasible)")
+    return f"{c['parametrization']}: no verified fit{up}"
+
+
+def _widths_note(widths: dict[str, Any]) -> str:
+    """The default segments, and why they are wider or narrower than the base ones."""
+    from ratfit.brdf.fitter import DEFAULT_DT
+
+    ladder = widths.get("widened_from") or []
+    base = ladder[0] if ladder else widths["dt"]
+    why = "" if base == DEFAULT_DT else (
+        f", widened from {DEFAULT_DT:g}" + (f" to {base:.3g}" if ladder else "")
+        + " so that samples measured at nearly the same point have overlapping segments")
+    if ladder:
+        why += ("; then to " + ", ".join(f"{w:.3g}" for w in [*ladder[1:], widths["dt"]])
+                + ": at " + ", ".join(f"{w:.3g}" for w in ladder)
+                + " every split the search tested was infeasible")
+    if widths.get("narrowed_floor_from"):
+        why += (f"; floor narrowed from {widths['narrowed_floor_from']:g}: the fit "
+                "there was small and most samples lay under the floor")
+    return (f"segments: y +- {widths['dt']:.3g} y with a floor of "
+            f"{widths['floor_rel']:g} x the channel's largest value (default{why}; "
+            "--dt, --abs-width, --floor-rel override)")
