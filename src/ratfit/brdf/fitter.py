@@ -169,7 +169,7 @@ def default_floor_rel(param: str) -> float:
     """The default floor of a parametrization: :data:`HALF_VECTOR_FLOOR_REL` in the
     half-vector frame, :data:`DEFAULT_FLOOR_REL` elsewhere."""
     p = find_parametrization(param)
-    return HALF_VECTOR_FLOOR_REL if p is not None and p.name == HALF_VECTOR \
+    return HALF_VECTOR_FLOOR_REL if p is not None and p.name in (HALF_VECTOR, "RUSIN_TH_TD_PD") \
         else DEFAULT_FLOOR_REL
 
 
@@ -301,12 +301,14 @@ def _validity_line(check: Any, proof: Any) -> str | None:
     return "; dense check: ".join(parts) if parts else None
 
 
-def candidate_parametrizations(param: str) -> tuple[str, ...]:
+def candidate_parametrizations(param: str, cosine: bool = False) -> tuple[str, ...]:
     """The parametrizations :func:`fit_brdf_auto` tries for data in ``param``, in
-    order: the half-vector frame first for isotropic 3-D angle sets, else ``param``."""
+    order: the half-vector frame first for isotropic 3-D angle sets, else ``param``.
+    ``cosine``: f cos(theta_l) is not reciprocal, so the half-vector frame is then
+    RUSIN_TH_TD_PD (which fixes theta_l), not the symmetric :data:`HALF_VECTOR`."""
     p = find_parametrization(param)
     if p is not None and p.name in _HAS_HALF_VECTOR_ALTERNATIVE:
-        return (HALF_VECTOR, p.name)
+        return ("RUSIN_TH_TD_PD" if cosine else HALF_VECTOR, p.name)
     return (str(param),)
 
 

@@ -49,7 +49,9 @@ class Parametrization:
 
     ``invariant`` names what the coordinates determine about the pair: "full"
     (the pair itself), "isotropic" (the pair up to a rotation about the
-    normal), "th_td" (the half and difference elevations), "th" (the half
+    normal), "symmetric" (the pair up to that rotation, the exchange of L and V and
+    a mirror: what an isotropic reciprocal BRDF depends on), "th_td" (the half and
+    difference elevations), "th" (the half
     elevation), "half" (the half vector), "tv_tl" (the two elevations).
     ``bounds`` are the natural ranges of the coordinates, (dim, 2).
     """
@@ -463,7 +465,7 @@ _ALL = (
     _p("RUSIN_TH_TD_PD", ("theta_h", "theta_d", "phi_d"), "isotropic",
        ((0, _HALF), (0, _HALF), (-_PI, _PI)), _r3_from, _r3_to,
        "Isotropic Rusinkiewicz angles (MERL's table axes); canonical phi_h = 0."),
-    _p("RUSIN_TH_TD_SYM", ("theta_h", "theta_d", "sin2_theta_h_cos_2phi_d"), "isotropic",
+    _p("RUSIN_TH_TD_SYM", ("theta_h", "theta_d", "sin2_theta_h_cos_2phi_d"), "symmetric",
        ((0, _HALF), (0, _HALF), (-1, 1)), _sym_from, _sym_to,
        "Rusinkiewicz angles with the symmetries of an isotropic, reciprocal BRDF built in "
        "(ratfit's own name): theta_h, theta_d and sin^2(theta_h) cos(2 phi_d). Any function "
@@ -520,8 +522,9 @@ PARAMETRIZATIONS: dict[str, Parametrization] = {p.name: p for p in _ALL}
 # What each invariant determines (for round trips: src -> dst -> src is exact
 # when dst determines src's invariant).
 _DETERMINES = {
-    "full": {"full", "isotropic", "th_td", "th", "half", "tv_tl"},
-    "isotropic": {"isotropic", "th_td", "th", "tv_tl"},
+    "full": {"full", "isotropic", "symmetric", "th_td", "th", "half", "tv_tl"},
+    "isotropic": {"isotropic", "symmetric", "th_td", "th", "tv_tl"},
+    "symmetric": {"symmetric", "th_td", "th"},
     "th_td": {"th_td", "th"},
     "half": {"half", "th"},
     "tv_tl": {"tv_tl"},
