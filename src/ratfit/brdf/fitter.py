@@ -73,6 +73,10 @@ HALF_VECTOR = "RUSIN_TH_TD_SYM"
 # as validity rows: the proof covers the whole evaluated region, and the angle grid
 # leaves the band next to the mirror direction (theta_h -> 0) nearly empty.
 BOX_POINTS = 8000
+# Pieces the validity proof may examine per polynomial while the search runs (the
+# chosen fit's proof may examine 40 000): a short proof that finds a negative value
+# rejects a candidate at once, one that runs out only defers to the final proof.
+SEARCH_PROOF_BOXES = 4000
 HALF_VECTOR_FLOOR_REL = 0.001
 # A default fit this small (per channel, at most) whose floor covers most samples has
 # accuracy to spare: its segments are absolute widths almost everywhere, as wide as
@@ -612,13 +616,28 @@ class BRDFFitter(RationalFitter):
 
         rf = res.rational
         assert rf is not None
-        fam = rf.to_family()
-        ver = verify(fam, seg, channel=j, box_check=False)
-        proof = prove_validity(fam, self.parametrization, keep=self.used_coords)
-        self.__dict__.setdefault("_proofs", {})[id(fam)] = proof
-        self._checks[id(fam)] = self._checks.get(id(rf))
-        if ver.n_violations == 0 and np.isfinite(ver.linf) and proof.proved:
-            return replace(res, rational=fam, verification=replace(ver, verified=True))
+        self._final_proof = True
+        try:
+            for attempt in range(2):
+                fam = rf.to_family()
+                ver = verify(fam, seg, channel=j, box_check=False)
+                proof = prove_validity(fam, self.parametrization, keep=self.used_coords)
+                self.__dict__.setdefault("_proofs", {})[id(fam)] = proof
+                self._checks[id(fam)] = self._checks.get(id(rf))
+                if ver.n_violations == 0 and np.isfinite(ver.linf) and proof.proved:
+                    return replace(res, rational=fam,
+                                   verification=replace(ver, verified=True))
+                if attempt or not len(proof.bad_points):
+                    break
+                # the repair of the search, now with the full proof as the check
+                self._extra.append(_spread(proof.bad_points, SEARCH_POINTS))
+                out = self._polish_rounds(rf, seg, j, None, rounds=REPAIR_ROUNDS,
+                                          method="qp", repair=True)
+                if out is None:
+                    break
+                rf = out[0]
+        finally:
+            self._final_proof = False
         why = ("misses a segment in its stored form" if ver.n_violations
                or not np.isfinite(ver.linf) else f"validity {proof.summary()}")
         return replace(res, success=False, status=2, rational=fam,
@@ -800,10 +819,15 @@ class BRDFFitter(RationalFitter):
         if chk is None:  # nothing says what is valid: the plain box check decides
             return ver if box_checked else verify(rf, seg, channel=j)
         if chk.valid:
-            # the dense check found nothing: now the proof, on the whole evaluated region
-            proof = prove_validity(rf, self.parametrization, keep=keep)
+            # the dense check found nothing: now the proof, on the whole evaluated region.
+            # While the search runs, a short proof that finds q <= 0 or p < 0 rejects the
+            # candidate and one that runs out of pieces lets it on; the chosen fit gets
+            # the full proof (:meth:`_proved`), which alone makes it a success.
+            final = self.__dict__.get("_final_proof", False)
+            proof = prove_validity(rf, self.parametrization, keep=keep,
+                                   max_boxes=40_000 if final else SEARCH_PROOF_BOXES)
             self.__dict__.setdefault("_proofs", {})[id(rf)] = proof
-            if not proof.proved:
+            if not proof.proved and (final or proof.refuted):
                 chk = replace(chk, valid=False, bad_points=proof.bad_points,
                               method=f"{chk.method}; {proof.summary()}")
         if not hasattr(self, "_checks"):

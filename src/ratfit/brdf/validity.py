@@ -306,6 +306,11 @@ class ValidityProof:
     region: str
     bad_points: Array  # coordinates to constrain where the proof failed
 
+    @property
+    def refuted(self) -> bool:
+        """q <= 0 or p < 0 was found at a point of the region (not merely unproved)."""
+        return self.q.counterexample or self.p.counterexample
+
     def summary(self) -> str:
         state = "proved" if self.proved else "NOT PROVED"
         return (f"{state}: q > 0 {self.q.summary()}; p >= 0 {self.p.summary()}; "
@@ -395,9 +400,10 @@ _EXCLUDERS = {"RUSIN_TH_TD_PD": _rusin_excluder, "RUSIN_TH_TD_SYM": _sym_exclude
               "STARK_2D": _stark_excluder}
 
 
-def prove_validity(rf: RationalFunction, param: str,
-                   keep: ArrayLike | None = None) -> ValidityProof:
-    """Prove q > 0 and p >= 0 of ``rf`` (in its family form) on the evaluated region."""
+def prove_validity(rf: RationalFunction, param: str, keep: ArrayLike | None = None,
+                   max_boxes: int = 40_000) -> ValidityProof:
+    """Prove q > 0 and p >= 0 of ``rf`` (in its family form) on the evaluated region,
+    examining at most ``max_boxes`` pieces for each of q and p."""
     from ratfit.core.positivity import prove_positive
 
     space = rf.space
@@ -413,8 +419,8 @@ def prove_validity(rf: RationalFunction, param: str,
         exclude = _EXCLUDERS[p.name](space)
         region = "the domain box less pieces no pair of directions reaches"
     fam_name = space.family.name
-    qp = prove_positive(sign * Q, fam_name, strict=True, exclude=exclude)
-    pp = prove_positive(sign * P, fam_name, strict=False, exclude=exclude)
+    qp = prove_positive(sign * Q, fam_name, strict=True, exclude=exclude, max_boxes=max_boxes)
+    pp = prove_positive(sign * P, fam_name, strict=False, exclude=exclude, max_boxes=max_boxes)
     pts = [space.from_window(s.points) for s in (qp, pp) if len(s.points)]
     bad = np.concatenate(pts) if pts else np.zeros((0, space.dim))
     return ValidityProof(qp.proved and pp.proved, qp, pp, region, bad)
