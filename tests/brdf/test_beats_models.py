@@ -20,6 +20,17 @@ from ratfit.brdf.fitter import (
 from ratfit.brdf.io import brdf_dataset
 from ratfit.brdf.parametrizations import get_parametrization
 
+# The polish regressions below were found in the Rusinkiewicz angles (the default
+# half-vector frame before RUSIN_TH_TD_SYM); they stay pinned there.
+RUSIN = "RUSIN_TH_TD_PD"
+# Open (issue 28): since BRDF fits need a proof of q > 0 and p >= 0 on the whole evaluated
+# region, the least-squares polish of these mystique fits in RUSIN_TH_TD_PD is refuted
+# (q < 0 at a corner near the mirror direction) and the unpolished fit is kept. The
+# polish's band rows are still exercised; these expectations come back when the polish
+# carries the proof's points. strict: a pass is reported.
+_UNPROVED_POLISH = ("the polish of this fit is not proved valid: the unpolished fit is kept "
+                    "(issue 28, open)")
+
 
 @pytest.mark.slow
 def test_default_fit_of_acryl_blue_beats_lambert_ggx(shared_data: Path) -> None:
@@ -69,12 +80,13 @@ def test_default_width_follows_what_the_data_needs(shared_data: Path) -> None:
 
 
 @pytest.mark.slow
+@pytest.mark.xfail(strict=True, reason=_UNPROVED_POLISH)
 def test_polish_meets_the_band_on_a_specular_peak(shared_data: Path) -> None:
     """mystique G in the half-vector frame: q spans four decades over the data, so
     the polish QP (in whitened coordinates) met an active band row only to the
     solver's tolerance, 0.2 above a segment at the peak, and the polish was thrown
     away (RMSE 0.53). Raised right-hand sides make it meet the band: RMSE 0.084."""
-    ds = brdf_dataset(shared_data / "cornell" / "mystique.brdf", HALF_VECTOR, channels=["G"])
+    ds = brdf_dataset(shared_data / "cornell" / "mystique.brdf", RUSIN, channels=["G"])
     fitter, seg, _ = fit_brdf_auto([ds], time_limit=None)
     res = fitter.result_
     assert res.success and "least-squares polish" in res.message, res.message
@@ -84,13 +96,14 @@ def test_polish_meets_the_band_on_a_specular_peak(shared_data: Path) -> None:
 
 
 @pytest.mark.slow
+@pytest.mark.xfail(strict=True, reason=_UNPROVED_POLISH)
 def test_polish_settles_when_q_spans_six_decades(shared_data: Path) -> None:
     """mystique G at a 0.05 % floor: q of the (3, 5) fit spans six decades over the
     data; rows met to rounding used to be 'missed' forever (30 rounds, no polish,
     RMSE 0.49). A row counts as missed only when the value leaves the band."""
     from ratfit.brdf.fitter import fit_brdf
 
-    ds = brdf_dataset(shared_data / "cornell" / "mystique.brdf", HALF_VECTOR, channels=["G"])
+    ds = brdf_dataset(shared_data / "cornell" / "mystique.brdf", RUSIN, channels=["G"])
     fitter, seg, _ = fit_brdf(ds, dt=0.05, floor_rel=0.0005, time_limit=None)
     res = fitter.result_
     assert res.success and "least-squares polish" in res.message, res.message
@@ -108,7 +121,7 @@ def test_a_rejected_candidate_is_solved_again_before_it_is_repaired(shared_data:
     gives a valid (1, 6) with RMSE 0.059. The repair now comes after that."""
     from ratfit.brdf.fitter import fit_brdf
 
-    ds = brdf_dataset(shared_data / "cornell" / "mystique.brdf", HALF_VECTOR, channels=["B"])
+    ds = brdf_dataset(shared_data / "cornell" / "mystique.brdf", RUSIN, channels=["B"])
     # the default widths before the floor is narrowed (a small fit: see SMALL_FIT_TOTAL)
     fitter, seg, _ = fit_brdf(ds, dt=DEFAULT_DT, floor_rel=HALF_VECTOR_FLOOR_REL,
                               time_limit=None)
@@ -120,6 +133,7 @@ def test_a_rejected_candidate_is_solved_again_before_it_is_repaired(shared_data:
 
 
 @pytest.mark.slow
+@pytest.mark.xfail(strict=True, reason=_UNPROVED_POLISH)
 def test_polish_falls_back_to_the_cone_program(shared_data: Path) -> None:
     """mystique at a 0.05 % floor, all three channels: G's (4, 5) fit has q over six
     decades and DAQP called every cut-off of its whitened polish QP infeasible, with
@@ -127,7 +141,7 @@ def test_polish_falls_back_to_the_cone_program(shared_data: Path) -> None:
     cone program in c polishes it (about 0.01); every channel is polished."""
     from ratfit.brdf.fitter import fit_brdf
 
-    ds = brdf_dataset(shared_data / "cornell" / "mystique.brdf", HALF_VECTOR)
+    ds = brdf_dataset(shared_data / "cornell" / "mystique.brdf", RUSIN)
     fitter, seg, _ = fit_brdf(ds, dt=0.05, floor_rel=0.0005, time_limit=None, jobs=1)
     for j, res in enumerate(fitter.results_):
         assert res.success and "least-squares polish" in res.message, res.message

@@ -586,17 +586,31 @@ class BRDFFitter(RationalFitter):
         self.used_coords = used_coords
 
     def fit(self, segments: Segments) -> BRDFFitter:
-        self._shared_extra: list[Array] = []
+        if not self.__dict__.get("_full_search", False):
+            self._shared_extra: list[Array] = []
         self._checks: dict[int, Any] = {}
         super().fit(segments)
+        searched = list(self.results_)
+        prove = self.physical and find_parametrization(self.parametrization) is not None
         if self.polish:
-            # small matrices: BLAS worker threads only spin (see ratfit.core.threads)
-            with one_blas_thread():
-                self.results_ = [self._polished(r, segments, j) if r.success else r
-                                 for j, r in enumerate(self.results_)]
-        if self.physical and find_parametrization(self.parametrization) is not None:
-            self.results_ = [self._proved(r, segments, j) if r.success else r
-                             for j, r in enumerate(self.results_)]
+            # small matrices: BLAS worker threads only spin (see ratfit.core.threads);
+            # the polish is checked with the full proof, as the chosen fit will be
+            self._final_proof = prove
+            try:
+                with one_blas_thread():
+                    self.results_ = [self._polished(r, segments, j) if r.success else r
+                                     for j, r in enumerate(self.results_)]
+            finally:
+                self._final_proof = False
+        if prove:
+            self.results_ = [self._proved_or_searched(r, s, segments, j)
+                             for j, (r, s) in enumerate(zip(self.results_, searched,
+                                                            strict=True))]
+            if not self.__dict__.get("_full_search", False):
+                self.results_ = [r if r.success or s.rational is None or not s.success
+                                 else self._search_with_full_proof(r, segments, j)
+                                 for j, (r, s) in enumerate(zip(self.results_, searched,
+                                                                strict=True))]
         # what the dense validity check and the proof said about each channel's chosen fit
         self.validity_ = [
             self._checks.get(id(r.rational)) if r.rational is not None else None
@@ -606,6 +620,36 @@ class BRDFFitter(RationalFitter):
         self.proofs_ = [proofs.get(id(r.rational)) if r.rational is not None else None
                         for r in self.results_]
         return self
+
+    def _search_with_full_proof(self, res: FitResult, seg: Segments, j: int) -> FitResult:
+        """Channel ``j`` searched again with the full proof on every candidate, when the
+        fit the short proofs let through was refuted at the end (slower, and rare)."""
+        again = type(self)(**self.get_params())
+        again._full_search = True
+        again._final_proof = True
+        again._shared_extra = list(self._extra)
+        again.fit(seg.channel(j))
+        out = again.results_[0]
+        if not out.success:
+            return res
+        self.__dict__.setdefault("_proofs", {}).update(again.__dict__.get("_proofs", {}))
+        self._checks.update(again._checks)
+        return replace(out, message=f"{out.message}; searched again with the full validity "
+                                    "proof on every candidate")
+
+    def _proved_or_searched(self, res: FitResult, searched: FitResult, seg: Segments,
+                            j: int) -> FitResult:
+        """The polished fit if it is proved, else the search's own fit if that is."""
+        if not res.success:
+            return res
+        out = self._proved(res, seg, j)
+        if out.success or searched is res or not searched.success:
+            return out
+        back = self._proved(searched, seg, j)
+        if not back.success:
+            return out
+        return replace(back, message=f"{back.message}; the least-squares polish was not "
+                                     "proved valid: the search's fit is kept")
 
     def _proved(self, res: FitResult, seg: Segments, j: int) -> FitResult:
         """``res`` with its rational in the space's own family (the coefficients a fit file
