@@ -29,12 +29,16 @@ def export_cmd(fit_path: Path, lang: str, output: Path, form: str, prefix: str) 
     """Write C, GLSL or Python source evaluating a saved (verified) fit."""
     from ratfit.export.code import export_fit
 
+    from ratfit._atomic import is_stream
+
     res = export_fit(fit_path, lang, output, form=form, prefix=prefix)
+    err = is_stream(output)  # code on stdout (-o -, a pipe): the notes go to stderr
     for line in res.describe():
-        click.echo(line)
+        click.echo(line, err=err)
     if res.parametrization:
-        click.echo(f"directions -> {res.parametrization}: {prefix}_coords, {prefix}_brdf")
-    click.echo(f"wrote {output}")
+        click.echo(f"directions -> {res.parametrization}: {prefix}_coords, {prefix}_brdf",
+                   err=err)
+    click.echo(f"wrote {output}", err=err)
 
 
 @main.command("plot")
