@@ -27,9 +27,8 @@ _FILE = click.Path(dir_okay=False, path_type=Path)
 @click.option("--prefix", default="ratfit", show_default=True, help="Prefix of every name.")
 def export_cmd(fit_path: Path, lang: str, output: Path, form: str, prefix: str) -> None:
     """Write C, GLSL or Python source evaluating a saved (verified) fit."""
-    from ratfit.export.code import export_fit
-
     from ratfit._atomic import is_stream
+    from ratfit.export.code import export_fit
 
     res = export_fit(fit_path, lang, output, form=form, prefix=prefix)
     err = is_stream(output)  # code on stdout (-o -, a pipe): the notes go to stderr

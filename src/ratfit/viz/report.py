@@ -20,7 +20,7 @@ from numpy.typing import NDArray
 from ratfit._atomic import atomic_dir
 from ratfit.errors import InputError
 from ratfit.io.data import Dataset
-from ratfit.io.fitfile import SavedFit
+from ratfit.io.fitfile import SavedFit, scope_text, subset_of
 
 __all__ = ["LoadedFit", "compare_table", "load_data_for", "write_report"]
 
@@ -361,14 +361,19 @@ def _html(fit: LoadedFit, data_path, res: ReportResult, pics, version: str) -> s
     diag = ("<table><tr><th>channel</th><th>n</th><th>m</th><th>verified</th>"
             "<th>max violation</th><th>Linf</th><th>max rel. error</th></tr>")
     sealed = getattr(fit.saved, "integrity", "sealed") == "sealed"
+    sub = subset_of(fit.saved)
     for ch in fit.saved.channels:
         s = ch.summary
         ok = s.get("verified") is True and sealed
+        said = "NO" if not ok else "yes" if sub is None else (
+            f"on a subset of {sub[0]} of {sub[1]} samples" if sub[0] else "on a subset")
         diag += (f"<tr><td>{e(ch.name)}</td><td>{ch.rational.n}</td><td>{ch.rational.m}</td>"
-                 f"<td>{'yes' if ok else 'NO'}</td>"
+                 f"<td>{e(said)}</td>"
                  f"<td>{_num(s.get('max_violation'))}</td><td>{_num(s.get('linf'))}</td>"
                  f"<td>{_num(s.get('max_rel_error'))}</td></tr>")
     diag += "</table>"
+    if sealed:
+        diag += f"<p>{e(scope_text(fit.saved))}</p>"
     if not sealed:
         diag += ("<p class='bad'>The fit file was edited after ratfit wrote it (or predates "
                  "content digests): its verification record is not trusted.</p>")
