@@ -27,9 +27,23 @@ from collections.abc import Iterator
 from pathlib import Path
 from typing import IO
 
-__all__ = ["STDOUT", "atomic_dir", "atomic_open", "atomic_path", "is_stream", "output_kind"]
+__all__ = ["STDOUT", "atomic_dir", "atomic_open", "atomic_path", "completed", "forget_completed",
+           "is_stream", "output_kind"]
 
 STDOUT = "-"
+
+# Outputs completed in this process (since forget_completed()): when a later step fails
+# (printing the report to a full stdout), the error can say which files are complete.
+_COMPLETED: list[str] = []
+
+
+def completed() -> list[str]:
+    """Paths written completely since the last :func:`forget_completed`, in order."""
+    return list(_COMPLETED)
+
+
+def forget_completed() -> None:
+    _COMPLETED.clear()
 
 
 def output_kind(path: str | os.PathLike[str]) -> tuple[Path, str]:
@@ -182,6 +196,7 @@ def atomic_path(path: str | os.PathLike[str]) -> Iterator[Path]:
     try:
         yield tmp
         os.replace(tmp, target)
+        _COMPLETED.append(os.fspath(path))
     except BaseException as exc:
         tmp.unlink(missing_ok=True)
         _remove_made(made)
@@ -280,6 +295,7 @@ def atomic_dir(path: str | os.PathLike[str]) -> Iterator[Path]:
         else:
             _merge(tmp, target)
             shutil.rmtree(tmp)
+        _COMPLETED.append(os.fspath(path))
     except BaseException as exc:
         shutil.rmtree(tmp, ignore_errors=True)
         _remove_made(made)

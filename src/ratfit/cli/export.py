@@ -242,7 +242,7 @@ def _register_compare(group: click.Group) -> None:
                        "(repeatable). Lobes: lambert, blinn, ward, beckmann, ggx, lafortune.")
     @click.option("--param", default=None,
                   help="Parametrization for --model-only runs (default: the file's).")
-    @click.option("--starts", type=int, default=8, show_default=True,
+    @click.option("--starts", type=click.IntRange(1, 1000), default=8, show_default=True,
                   help="Random starts per analytic fit.")
     @click.option("--json", "as_json", is_flag=True, help="Print one JSON object on stdout.")
     @trust_edited_option
