@@ -334,12 +334,13 @@ def _num(v: Any) -> str:
 
 
 def _plot_albedo(alb, names: list[str], path: Path) -> Path:
+    from ratfit.viz._figures import plain
     from ratfit.viz.pictures import _plt, _save
 
     plt = _plt()
     fig, ax = plt.subplots(figsize=(6, 3.5))
     for j, n in enumerate(names):
-        ax.plot(np.degrees(alb.theta_i), alb.albedo[:, j], ".-", label=n)
+        ax.plot(np.degrees(alb.theta_i), alb.albedo[:, j], ".-", label=plain(n))
     ax.axhline(1.0, color="r", lw=0.8, ls="--", label="energy limit")
     ax.set_xlabel("incidence theta_i (deg)")
     ax.set_ylabel("directional albedo")
