@@ -124,3 +124,21 @@ def test_channel_names_are_quoted_in_eval_csv(files, tmp_path: Path, name: str) 
         assert rows[0] == ["x0", name]
         assert len(rows) == 41 and all(len(r) == 2 for r in rows)
         assert float(rows[1][1]) == pytest.approx(load_fit(fit)([0.0])[0, 0], rel=1e-15)
+
+
+def test_names_are_shown_as_written_not_as_rich_markup(tmp_path: Path) -> None:
+    """Channel and file names go into rich tables and lines: '[/]' stopped `ratfit fit`
+    with exit 3 (MarkupError) and '[bold]b' was shown as a bold 'b'."""
+    x = np.linspace(0.0, 2.0, 40).tolist()
+    data = tmp_path / "r.csv"
+    data.write_text("x,y_[/],y_[bold]b\n" + "".join(
+        f"{a!r},{1.0 / (1.0 + a * a) + 0.5!r},{a + 1.0!r}\n" for a in x))
+    out = tmp_path / "fit[/].json"
+    res = run_cli("fit", data, "--dt", "0.01", "-o", out)
+    assert res.exit_code == 0, res.output
+    table = res.stdout
+    assert "\n [/] " in table and "\n [bold]b " in table and f"wrote {out}" in table
+    assert [c.name for c in load_fit(out).channels] == ["[/]", "[bold]b"]
+    res = run_cli("fit", data, "--dt", "0.01", "--max-total", "2")  # no fit: message lines
+    assert res.exit_code == 1, res.output
+    assert "\n[/]: no verified fit" in res.stdout and "\n[bold]b: no verified fit" in res.stdout

@@ -83,4 +83,5 @@ def _print_batch(summary) -> None:
         if r["status"] == "failed":
             what = f"{r['input']} {r['channel']} {r['settings_id']}: {r['message']}"
             con.print(f"[bold red]failed[/] {escape(what)}", highlight=False)
-    con.print(f"wrote {summary.csv} and {summary.parquet}", highlight=False)
+    con.print(f"wrote {escape(str(summary.csv))} and {escape(str(summary.parquet))}",
+              highlight=False)

@@ -296,8 +296,13 @@ def fit_table(con: Any, title: str, columns: list[str], rows: list[list[str]],
     while it is too wide, and what remains wraps instead of ending in "...": a number
     is never shown cut short. Returns the table and the names of dropped columns."""
     from rich import box
+    from rich.markup import escape
     from rich.table import Table
 
+    # cells and title hold text from files (channel, file and model names): shown as
+    # written, never read as rich markup ("[/]" would stop the command)
+    title = escape(title)
+    rows = [[escape(str(c)) for c in r] for r in rows]
     dropped: list[str] = []
     while True:
         keep = [j for j, c in enumerate(columns) if c not in dropped]
@@ -326,6 +331,8 @@ def _print_report(results, out: Path | None, verified_as: str | None = None) -> 
 
 
 def _report_table(results, out: Path | None, verified_as: str | None) -> None:
+    from rich.markup import escape as esc
+
     con = console()
     cols = ["channel", "n", "m", "total", "verified", "max viol.", "Linf", "RMSE", "max rel.",
             "delta", "QPs", "s"]
@@ -347,19 +354,20 @@ def _report_table(results, out: Path | None, verified_as: str | None) -> None:
         con.print(f"(narrow terminal: {', '.join(dropped)} in --json)", highlight=False)
     for r in results:
         if not r.success:
-            con.print(f"[bold red]{r.channel}[/]: {r.message}")
+            con.print(f"[bold red]{esc(r.channel)}[/]: {esc(r.message)}")
         elif r.time_limited:
-            con.print(f"[yellow]{r.channel}*[/]: {r.message}", highlight=False)
+            con.print(f"[yellow]{esc(r.channel)}*[/]: {esc(r.message)}", highlight=False)
         # a few, then a count: on a large fit DAQP's false "infeasible" (each one
         # cross-checked) came as 25 lines per channel
         for d in r.disagreements[:SHOWN_DISAGREEMENTS]:
-            con.print(f"[yellow]{r.channel} solver disagreement[/] {d}")
+            con.print(f"[yellow]{esc(r.channel)} solver disagreement[/] {esc(str(d))}")
         if len(r.disagreements) > SHOWN_DISAGREEMENTS:
-            con.print(f"[yellow]{r.channel}[/]: {len(r.disagreements) - SHOWN_DISAGREEMENTS} "
+            con.print(f"[yellow]{esc(r.channel)}[/]: "
+                      f"{len(r.disagreements) - SHOWN_DISAGREEMENTS} "
                       "more solver disagreement(s), each settled by a cross-check "
                       "(all in --json)", highlight=False)
     if out is not None:
-        con.print(f"wrote {out}", highlight=False)
+        con.print(f"wrote {esc(str(out))}", highlight=False)
 
 
 def _fmt(v: float | None) -> str:
