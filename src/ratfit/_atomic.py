@@ -287,6 +287,7 @@ def atomic_dir(path: str | os.PathLike[str]) -> Iterator[Path]:
     except OSError as exc:
         _remove_made(made)
         raise _named(exc, path, (str(target.parent),)) from None
+    inside = str(tmp) + os.sep
     try:
         yield tmp
         if kind == "new":
@@ -295,8 +296,11 @@ def atomic_dir(path: str | os.PathLike[str]) -> Iterator[Path]:
         else:
             _merge(tmp, target)
             shutil.rmtree(tmp)
+        # the files written inside count as the folder, under its own name
+        _COMPLETED[:] = [p for p in _COMPLETED if not p.startswith(inside)]
         _COMPLETED.append(os.fspath(path))
     except BaseException as exc:
+        _COMPLETED[:] = [p for p in _COMPLETED if not p.startswith(inside)]
         shutil.rmtree(tmp, ignore_errors=True)
         _remove_made(made)
         if isinstance(exc, OSError):
