@@ -625,6 +625,8 @@ _BRDF_FIELDS: dict[str, tuple[Any, str]] = {
     "dropped_coords": (_coordinate_map, "an object mapping coordinate indices "
                                         "(\"0\", \"1\", ...) to numbers"),
     "validity": (_list_of(_opt(_is_str)), "a list of strings or nulls"),
+    "proof": (_list_of(_opt(lambda v: isinstance(v, dict) and _is_bool(v.get("proved")))),
+              "a list of nulls or objects with a true/false 'proved'"),
 }
 
 
@@ -668,6 +670,12 @@ def scope_text(saved: SavedFit) -> str:
                     f"not checked at the other {n - k} samples.")
         return "Verified on a subset of its samples only (brdf fit --max-points)."
     if saved.space.dim > 1:
+        meta = saved.extra.get("brdf") if isinstance(saved.extra, dict) else None
+        proofs = meta.get("proof") if isinstance(meta, dict) else None
+        if (isinstance(proofs, list) and len(proofs) == len(saved.channels)
+                and all(isinstance(p, dict) and p.get("proved") is True for p in proofs)):
+            return ("Verified at every sample of its data; q > 0 and p >= 0 proved where it "
+                    "is evaluated (Bernstein bounds, as the fit file records).")
         return ("Verified at every sample of its data; that the denominator has no zero "
                 "between the samples was checked on a dense grid, not proved.")
     return ("Verified on its data; no pole on the domain (proved in exact arithmetic when "
