@@ -258,3 +258,26 @@ def test_subset_fit_says_subset_never_verified_on_its_data(brdf_fits, tmp_path: 
             assert "<td>yes</td>" not in page
         else:
             assert "<td>yes</td>" in page and "subset" not in page
+
+
+@pytest.mark.parametrize(("proof", "said"), [
+    ([{"proved": True}], "q > 0 and p >= 0 proved where it is evaluated"),
+    ([{"proved": False}], "checked on a dense grid, not proved"),
+    ([None], "checked on a dense grid, not proved"),
+])
+def test_n_d_exports_claim_a_proof_only_where_the_file_records_one(
+        brdf_fits, tmp_path: Path, proof, said: str) -> None:
+    full, _, _ = brdf_fits
+    f = reseal(full, tmp_path / "p.json", _brdf("proof", proof))
+    out = tmp_path / "x.py"
+    res = run_cli("export", f, "--lang", "python", "-o", out)
+    assert res.exit_code == 0, res.output
+    head = "\n".join(out.read_text().splitlines()[:4])
+    assert said in head
+
+
+def test_proof_of_the_wrong_type_is_refused(brdf_fits, tmp_path: Path) -> None:
+    full, _, _ = brdf_fits
+    for proof in ("proved", [True], [{"proved": "yes"}]):
+        f = reseal(full, tmp_path / "p.json", _brdf("proof", proof))
+        one_error_line(run_cli("export", f, "--lang", "c", "-o", tmp_path / "x.c"), "proof")
