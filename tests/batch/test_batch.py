@@ -531,3 +531,33 @@ def test_a_new_output_folder_appears_whole_or_not_at_all(client, tmp_path, monke
                   base_dir=synth)
     assert info.value.filename == str(out)
     assert sorted(p.name for p in tmp_path.iterdir()) == ["data"]  # nothing half-written
+
+
+def test_resume_of_a_brdf_file_reloads_its_block(client, tmp_path):
+    """A BRDF task's result is resumed once its file loads as a BRDF fit; a re-sealed
+    block of the wrong type ("cosine_weighted": "no") is fitted again."""
+    from ratfit.brdf.parametrizations import get_parametrization
+    from ratfit.io.data import write_alta
+
+    rng = np.random.default_rng(5)
+    c = np.column_stack([rng.uniform(0.05, 1.3, 300), rng.uniform(0.05, 1.3, 300),
+                         rng.uniform(-np.pi, np.pi, 300)])
+    L, V = get_parametrization("ISOTROPIC_TV_TL_DPHI").to_dirs(c)
+    h = L + V
+    cos_h = h[:, 2] / np.linalg.norm(h, axis=1)
+    lobe = 0.1225 / (np.pi * ((0.1225 - 1.0) * cos_h * cos_h + 1.0) ** 2)
+    write_alta(tmp_path / "lobe.alta", c, (0.05 + 0.12 * lobe)[:, None],
+               param_in="ISOTROPIC_TV_TL_DPHI", param_out="INV_STERADIAN")
+    manifest = {"inputs": [{"path": "lobe.alta", "kind": "brdf", "parametrization":
+                            "COS_TH_TD_PD", "dt": 0.1, "abs_width": 1e-4, "max_total": 30}]}
+    out = tmp_path / "out"
+    first = batch.run(manifest, client, outdir=out, base_dir=tmp_path)
+    assert first.counts["ok"] == 1, first.rows
+    again = batch.run(manifest, None, outdir=out, base_dir=tmp_path)
+    assert again.fitted == 0 and again.skipped == 1
+    _reseal(out / first.rows[0]["fit_file"],
+            lambda d: d["brdf"].update(cosine_weighted="no"))
+    third = batch.run(manifest, client, outdir=out, base_dir=tmp_path)
+    assert third.fitted == 1 and third.skipped == 0 and third.counts["ok"] == 1
+    doc = json.loads((out / third.rows[0]["fit_file"]).read_text())
+    assert doc["brdf"]["cosine_weighted"] is False
