@@ -55,7 +55,8 @@ def _family_polys(name: str, k: int) -> list[list[int | Fraction]]:
     out: list[list[int | Fraction]] = []
     if name == "monomial":
         for i in range(k):
-            out.append([0] * i + [1])
+            power: list[int | Fraction] = [int(e == i) for e in range(i + 1)]
+            out.append(power)
     elif name == "chebyshev":
         for i in range(k):
             if i == 0:
