@@ -103,8 +103,11 @@ def test_worker_killed_mid_batch_matches_serial(client, shared_data, tmp_path):
     before = client.run(os.getpid)
     killed: dict[str, Any] = {}
 
+    written: list[dict[str, Any]] = []
+
     def kill_one(row: dict[str, Any]) -> None:
-        if killed or sum(1 for _ in out.glob("*.json")) < 2:
+        written.append(row)  # (a new folder is built beside ``out``: count the rows)
+        if killed or len(written) < 2:
             return
         busy = {w: ks for w, ks in client.processing().items() if ks}
         victim = sorted(busy)[0]
@@ -213,9 +216,9 @@ def test_failed_rerun_on_request_and_changed_input_refits(client, tmp_path):
     s1 = batch.run(manifest, client, outdir=out, base_dir=synth)
     assert [r["status"] for r in s1.rows] == ["failed", "ok", "no-fit"]
     assert [r["channel"] for r in s1.rows] == ["y", "atan", "runge"]
-    assert sorted(p.name for p in (out / batch.ROWS_DIR).iterdir()) == sorted(
-        f"{n}.json" for n in ("line.y." + s1.rows[0]["settings_id"],
-                              "bumps.runge." + s1.rows[2]["settings_id"]))
+    names = sorted(p.name for p in (out / batch.ROWS_DIR).iterdir())
+    assert [n.rsplit("-", 1)[0] for n in names] == sorted(
+        ("bumps.runge." + s1.rows[2]["settings_id"], "line.y." + s1.rows[0]["settings_id"]))
     ok_file = out / s1.rows[1]["fit_file"]
     mtime = ok_file.stat().st_mtime_ns
 
@@ -232,7 +235,7 @@ def test_failed_rerun_on_request_and_changed_input_refits(client, tmp_path):
     write_csv(synth / "zero" / "line.csv", x[:, None], (x + 3.0)[:, None])
     s4 = batch.run(manifest, client, outdir=out, base_dir=synth)
     assert s4.fitted == 1 and [r["status"] for r in s4.rows] == ["ok", "ok", "no-fit"]
-    assert not (out / batch.ROWS_DIR / f"line.y.{s1.rows[0]['settings_id']}.json").exists()
+    assert not list((out / batch.ROWS_DIR).glob(f"line.y.{s1.rows[0]['settings_id']}-*"))
     assert load_fit(out / s4.rows[0]["fit_file"]).channels[0].summary["verified"]
 
 
@@ -251,7 +254,7 @@ def test_plan_names_ids_and_precedence(tmp_path):
     assert bad == []
     names = [t.name for t in tasks]
     assert len(names) == len(set(names)) == 8  # (bumps, waves: ch 1; waves: exps; line) x 2
-    assert all(re.fullmatch(r"[\w.-]+\.[0-9a-f]{10}", n) for n in names)
+    assert all(re.fullmatch(r"[\w.-]+\.[0-9a-f]{10}-[0-9a-f]{8}", n) for n in names)
     assert [n.rsplit(".", 1)[0] for n in names[::2]] == [
         "bumps.cosh", "waves.atan", "waves.exps", "zero--line.y"]
     assert {t.channel for t in tasks if t.input == "waves.csv"} == {"exps", "atan"}
@@ -364,7 +367,8 @@ def test_cli_ctrl_c_exits_130_and_leaves_no_partial_file(tmp_path):
     proc = subprocess.Popen([*cmd, "batch", str(m), "-o", str(out), "--workers", "1"],
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     deadline = time.monotonic() + 30
-    while not list(out.glob("*.json")) and time.monotonic() < deadline:
+    # a new folder is built beside ``out`` (moved there when the batch stops)
+    while not list(tmp_path.glob(".out.*.tmp/*.json")) and time.monotonic() < deadline:
         time.sleep(0.02)
     proc.send_signal(signal.SIGINT)
     _, err = proc.communicate(timeout=30)
@@ -436,3 +440,124 @@ def test_a_batch_of_cornell_files_equals_them_fitted_one_by_one(client, shared_d
             [(c["p"], c["q"]) for c in alone["channels"]]
         assert doc["brdf"]["parametrization"] == alone["brdf"]["parametrization"]
         assert (row["n"], row["m"]) == (alone["channels"][0]["n"], alone["channels"][0]["m"])
+
+
+# ------------------------------------------------------------------------------ names, resume
+def _alike_channels(folder: Path) -> Path:
+    """One CSV whose channels 'a b' and 'a_b' read alike once made file-safe."""
+    folder.mkdir(parents=True, exist_ok=True)
+    x = np.linspace(0.0, 1.0, 60)
+    rows = "".join(f"{a!r},{1.0 + a!r},{2.0 + a * a!r}\n" for a in x.tolist())
+    (folder / "two.csv").write_text("x,y_a b,y_a_b\n" + rows)
+    return folder
+
+
+def test_channels_that_read_alike_are_both_fitted(client, tmp_path):
+    synth = _alike_channels(tmp_path / "data")
+    out = tmp_path / "out"
+    s = batch.run({"inputs": ["two.csv"], "defaults": {"dt": 0.01}}, client, outdir=out,
+                  base_dir=synth)
+    assert [(r["channel"], r["status"]) for r in s.rows] == [("a b", "ok"), ("a_b", "ok")]
+    files = [r["fit_file"] for r in s.rows]
+    assert len(set(files)) == 2 and all(f.startswith("two.a_b.") for f in files)
+    x = np.array([[0.0], [0.5], [1.0]])
+    for r, want in zip(s.rows, (1.0 + x[:, 0], 2.0 + x[:, 0] ** 2), strict=True):
+        saved = load_fit(out / r["fit_file"])
+        assert saved.channels[0].name == r["channel"]
+        np.testing.assert_allclose(saved(x)[:, 0], want, rtol=0.011)
+    import csv
+
+    with open(out / "summary.csv", newline="") as fh:
+        table = list(csv.DictReader(fh))
+    assert [(t["channel"], t["status"]) for t in table] == [("a b", "ok"), ("a_b", "ok")]
+
+
+def _reseal(path: Path, edit) -> None:
+    """Edit a fit file and write a valid digest for the edit (anyone can: it is no MAC)."""
+    from ratfit.io.fitfile import content_digest
+
+    doc = json.loads(path.read_text())
+    edit(doc)
+    doc["digest"] = content_digest(doc)
+    path.write_text(json.dumps(doc))
+
+
+def test_resume_refits_results_that_no_longer_verify(client, tmp_path):
+    synth = write_synthetic(tmp_path / "data")
+    manifest = {"inputs": ["waves.csv"], "defaults": {"dt": 1e-3}}
+    out = tmp_path / "out"
+    first = batch.run(manifest, client, outdir=out, base_dir=synth)
+    assert first.counts["ok"] == 2
+    exps, atan = (out / r["fit_file"] for r in first.rows)
+
+    def scale_p(doc):
+        ch = doc["channels"][0]
+        ch["p"] = [1.5 * v for v in ch["p"]]
+
+    # exps: edited without a new digest; atan: edited AND re-sealed, so only the data
+    # can tell that its function no longer meets the segments
+    doc = json.loads(exps.read_text())
+    scale_p(doc)
+    exps.write_text(json.dumps(doc))
+    _reseal(atan, scale_p)
+    with pytest.raises(Exception, match="digest"):
+        load_fit(exps)
+    assert load_fit(atan).verified  # it claims to be verified
+    again = batch.run(manifest, client, outdir=out, base_dir=synth)
+    assert again.fitted == 2 and again.skipped == 0
+    assert [r["resumed"] for r in again.rows] == [False, False]
+    data = read_data(synth / "waves.csv")
+    for r in again.rows:
+        saved = load_fit(out / r["fit_file"])
+        j = data.output_names.index(r["channel"])
+        seg = data.segments(dt=1e-3)
+        seg = Segments(seg.x, seg.lo[:, [j]], seg.hi[:, [j]], seg.y[:, [j]], (r["channel"],))
+        assert verify(saved.channels[0].rational, seg).max_violation == 0.0
+    # intact results are still resumed without refitting
+    third = batch.run(manifest, None, outdir=out, base_dir=synth)
+    assert third.fitted == 0 and third.skipped == 2
+
+
+def test_a_new_output_folder_appears_whole_or_not_at_all(client, tmp_path, monkeypatch):
+    synth = write_synthetic(tmp_path / "data")
+    out = tmp_path / "fresh" / "out"
+
+    def full_disk(rows, outdir):
+        raise OSError(28, "No space left on device")
+
+    monkeypatch.setattr(batch, "write_summary", full_disk)
+    with pytest.raises(OSError, match="No space") as info:
+        batch.run({"inputs": ["waves.csv"], "defaults": {"dt": 1e-2}}, client, outdir=out,
+                  base_dir=synth)
+    assert info.value.filename == str(out)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["data"]  # nothing half-written
+
+
+def test_resume_of_a_brdf_file_reloads_its_block(client, tmp_path):
+    """A BRDF task's result is resumed once its file loads as a BRDF fit; a re-sealed
+    block of the wrong type ("cosine_weighted": "no") is fitted again."""
+    from ratfit.brdf.parametrizations import get_parametrization
+    from ratfit.io.data import write_alta
+
+    rng = np.random.default_rng(5)
+    c = np.column_stack([rng.uniform(0.05, 1.3, 300), rng.uniform(0.05, 1.3, 300),
+                         rng.uniform(-np.pi, np.pi, 300)])
+    L, V = get_parametrization("ISOTROPIC_TV_TL_DPHI").to_dirs(c)
+    h = L + V
+    cos_h = h[:, 2] / np.linalg.norm(h, axis=1)
+    lobe = 0.1225 / (np.pi * ((0.1225 - 1.0) * cos_h * cos_h + 1.0) ** 2)
+    write_alta(tmp_path / "lobe.alta", c, (0.05 + 0.12 * lobe)[:, None],
+               param_in="ISOTROPIC_TV_TL_DPHI", param_out="INV_STERADIAN")
+    manifest = {"inputs": [{"path": "lobe.alta", "kind": "brdf", "parametrization":
+                            "COS_TH_TD_PD", "dt": 0.1, "abs_width": 1e-4, "max_total": 30}]}
+    out = tmp_path / "out"
+    first = batch.run(manifest, client, outdir=out, base_dir=tmp_path)
+    assert first.counts["ok"] == 1, first.rows
+    again = batch.run(manifest, None, outdir=out, base_dir=tmp_path)
+    assert again.fitted == 0 and again.skipped == 1
+    _reseal(out / first.rows[0]["fit_file"],
+            lambda d: d["brdf"].update(cosine_weighted="no"))
+    third = batch.run(manifest, client, outdir=out, base_dir=tmp_path)
+    assert third.fitted == 1 and third.skipped == 0 and third.counts["ok"] == 1
+    doc = json.loads((out / third.rows[0]["fit_file"]).read_text())
+    assert doc["brdf"]["cosine_weighted"] is False

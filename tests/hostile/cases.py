@@ -37,6 +37,8 @@ class Ctx:
     fit1d: Path  # a verified 1-D fit of a small function (ratfit fit)
     cdf: Path  # a verified CDF fit (ratfit cdf)
     csv1d: Path  # good 1-D data for that fit
+    brdf: Path | None = None  # a verified 3-D BRDF fit (ratfit brdf fit, synthetic data)
+    brdf_data: Path | None = None  # its data (ALTA text)
 
     def write(self, name: str, content: str | bytes) -> Path:
         return write_file(self.tmp, name, content)
@@ -608,10 +610,252 @@ def misparse_cases() -> list[Case]:
     return cases
 
 
+# --------------------------------------------------------------------------- re-sealed files
+# The digest is no signature: whoever edits a fit file can write the digest of the edit.
+# What can be proved or checked is checked again on load, whatever the digest says.
+def _reseal(edit: Callable[[dict], Any]) -> Callable[[dict], dict]:
+    def fn(doc: dict) -> dict:
+        from ratfit.io.fitfile import content_digest
+
+        edit(doc)
+        doc["digest"] = content_digest(doc)
+        return doc
+    return fn
+
+
+def _legendre_q(q: list[float]) -> Callable[[dict], None]:
+    """q replaced by Legendre coefficients (the Arnoldi recurrence dropped), p = 1."""
+    def edit(doc: dict) -> None:
+        doc["space"]["family"] = "legendre"
+        ch = doc["channels"][0]
+        for key in ("p_basis", "q_basis", "p_indices", "q_indices", "n", "m"):
+            ch.pop(key, None)
+        ch["p"], ch["q"], ch["monomial"] = [1.0], list(q), None
+    return edit
+
+
+def _in(path: list[Any], value: Any) -> Callable[[dict], None]:
+    def edit(doc: dict) -> None:
+        _set(path, value)(doc)
+    return edit
+
+
+def _brdf_block(block: dict) -> Callable[[dict], None]:
+    def edit(doc: dict) -> None:
+        doc["brdf"] = block
+    return edit
+
+
+_A, _B = 0.2501, 0.2509  # two roots between neighbouring points of a 1001-point scan
+RESEALED_1D: dict[str, tuple[Callable[[dict], Any], str]] = {
+    # 3 (t - c)^2 = 2 P2 - 6c P1 + 1 + 3c^2: a double root, exact in floats
+    "double-root": (_legendre_q([1.0 + 3 * 0.0625, -6 * 0.25, 2.0]), "pole"),
+    "double-root-at-end": (_legendre_q([4.0, -6.0, 2.0]), "pole"),
+    "rounded-double-root": (_legendre_q([0.09 + 1 / 3, -0.6, 2 / 3]), "pole"),
+    "two-close-roots": (_legendre_q([_A * _B + 1 / 3, -(_A + _B), 2 / 3]), "pole"),
+    "simple-root": (_legendre_q([0.0, 1.0]), "pole"),
+    "degree-above-cap": (_legendre_q([3.0] + [1e-3] * 200), "degree"),
+    "verified-string": (_in(["channels", 0, "diagnostics", "verified"], "yes"), "verified"),
+    "verified-number": (_in(["channels", 0, "diagnostics", "verified"], 1), "verified"),
+    "diagnostics-n-string": (_in(["channels", 0, "diagnostics", "n"], "3"), "'n'"),
+    "diagnostics-linf-string": (_in(["channels", 0, "diagnostics", "linf"], "0"), "linf"),
+    "provenance-segments-list": (_in(["provenance", "segments"], [0.01]), "segments"),
+    "provenance-dt-string": (_in(["provenance", "segments", "dt"], "0.01"), "segments"),
+    "provenance-command-string": (_in(["provenance", "command"], "ratfit fit"), "command"),
+    "provenance-input-number": (_in(["provenance", "input"], 5), "input"),
+    "brdf-block-unknown-param": (_brdf_block({"parametrization": "NOPE"}), "NOPE"),
+    "brdf-block-param-number": (_brdf_block({"parametrization": 3}), "parametrization"),
+    "brdf-block-cosine-no": (_brdf_block({"parametrization": "RUSIN_TH_TD_PD",
+                                          "cosine_weighted": "no"}), "cosine_weighted"),
+    "brdf-block-dropped-number": (_brdf_block({"parametrization": "RUSIN_TH_TD_PD",
+                                               "dropped_coords": 5}), "dropped_coords"),
+}
+
+RESEALED_BRDF: dict[str, tuple[Callable[[dict], Any], str]] = {
+    f"brdf-{k}": (_in(["brdf", field], value), field) for k, field, value in (
+        ("cosine-no", "cosine_weighted", "no"),
+        ("cosine-string-true", "cosine_weighted", "true"),
+        ("fold-null", "fold_phi_d", None),
+        ("positive-q-number", "positive_q", 0),
+        ("dropped-number", "dropped_coords", 5),
+        ("dropped-list", "dropped_coords", [1]),
+        ("dropped-string", "dropped_coords", "12"),
+        ("dropped-negative", "dropped_coords", {"-1": 0.5}),
+        ("dropped-out-of-range", "dropped_coords", {"9": 0.5}),
+        ("dropped-value-nan", "dropped_coords", {"0": "nan"}),
+        ("param-number", "parametrization", 3),
+        ("param-unknown", "parametrization", "NOT_A_PARAM"),
+        ("clamp-string", "clamp", "0"),
+        ("segments-string", "segments", "5%"),
+        ("channel-names-string", "channel_names", "R"),
+        ("validity-number", "validity", 1),
+        ("verified-on-number", "verified_on", 600),
+        ("subset-bigger-than-data", "subset", {"points": 900, "of": 600}),
+    )
+}
+
+
+def _resealed(src_attr: str, edit: Callable[[dict], Any], name: str) -> Callable[[Ctx], Path]:
+    def make(c: Ctx) -> Path:
+        src = getattr(c, src_attr)
+        assert src is not None, f"no {src_attr} fit in this context"
+        doc = _reseal(edit)(json.loads(src.read_text()))
+        return c.write(name, json.dumps(doc))
+    return make
+
+
+def resealed_cases() -> list[Case]:
+    cases = []
+    for key, (edit, expect) in RESEALED_1D.items():
+        mk = _resealed("fit1d", edit, "resealed.json")
+
+        def ev(c: Ctx, mk=mk) -> tuple[list[Any], list[Path]]:
+            return ["eval", mk(c), c.csv1d, "-o", c.out], [c.out]
+
+        def exp_c(c: Ctx, mk=mk) -> tuple[list[Any], list[Path]]:
+            return ["export", mk(c), "--lang", "c", "-o", c.out], [c.out]
+
+        def exp_py(c: Ctx, mk=mk) -> tuple[list[Any], list[Path]]:
+            return ["export", mk(c), "--lang", "python", "-o", c.out], [c.out]
+
+        def plot(c: Ctx, mk=mk) -> tuple[list[Any], list[Path]]:
+            out = c.tmp / "fresh" / "p.png"
+            return ["plot", mk(c), "-o", out], [out]
+
+        def report(c: Ctx, mk=mk) -> tuple[list[Any], list[Path]]:
+            return ["report", mk(c), "-o", c.tmp / "fresh"], [c.tmp / "fresh"]
+
+        for cmd, fn in (("eval", ev), ("export-c", exp_c), ("export-py", exp_py),
+                        ("plot", plot), ("report", report)):
+            if cmd == "eval" and key == "brdf-block-unknown-param":
+                continue  # eval reads points, never the parametrization: nothing to refuse
+            cases.append(Case(f"resealed-{cmd}-{key}", fn, expect))
+    for key, (edit, expect) in RESEALED_BRDF.items():
+        mk = _resealed("brdf", edit, "resealed-brdf.json")
+
+        def bexp(c: Ctx, mk=mk) -> tuple[list[Any], list[Path]]:
+            return ["export", mk(c), "--lang", "glsl", "-o", c.out], [c.out]
+
+        def beval(c: Ctx, mk=mk) -> tuple[list[Any], list[Path]]:
+            return ["brdf", "eval", mk(c), "--data", c.brdf_data], []
+
+        def bplot(c: Ctx, mk=mk) -> tuple[list[Any], list[Path]]:
+            out = c.tmp / "fresh" / "p.png"
+            return ["plot", mk(c), "--kind", "polar", "-o", out], [out]
+
+        def breport(c: Ctx, mk=mk) -> tuple[list[Any], list[Path]]:
+            return ["report", mk(c), "-o", c.tmp / "fresh"], [c.tmp / "fresh"]
+
+        for cmd, fn in (("export", bexp), ("brdf-eval", beval), ("plot", bplot),
+                        ("report", breport)):
+            cases.append(Case(f"resealed-{cmd}-{key}", fn, expect))
+    return cases
+
+
+# --------------------------------------------------------------------------- output targets
+def _file_in(c: Ctx, name: str = "plain.txt") -> Path:
+    return c.write(name, "not a folder\n")
+
+
+def _dir_in(c: Ctx, name: str) -> Path:
+    d = c.tmp / name
+    d.mkdir(exist_ok=True)
+    return d
+
+
+def _link_to_dir(c: Ctx) -> Path:
+    link = c.tmp / "to-dir"
+    if not link.is_symlink():
+        link.symlink_to(_dir_in(c, "real-dir"))
+    return link
+
+
+OUTPUT_CASES: dict[str, Build] = {
+    "fit-output-is-dir": lambda c: (["fit", c.csv1d, "--dt", "0.1", "-o", _dir_in(c, "o")],
+                                    []),
+    "fit-output-link-to-dir": lambda c: (["fit", c.csv1d, "--dt", "0.1", "-o", _link_to_dir(c)],
+                                         []),
+    "fit-output-under-a-file": lambda c: (["fit", c.csv1d, "--dt", "0.1", "-o",
+                                           _file_in(c) / "fit.json"], []),
+    "cdf-output-under-a-file": lambda c: (["cdf", c.csv1d, "-o", _file_in(c) / "cdf.json"], []),
+    "eval-output-link-to-dir": lambda c: (["eval", c.fit1d, c.csv1d, "-o", _link_to_dir(c)], []),
+    "eval-output-under-a-file": lambda c: (["eval", c.fit1d, c.csv1d, "-o",
+                                            _file_in(c) / "v.csv"], []),
+    "export-output-is-dir": lambda c: (["export", c.fit1d, "--lang", "c", "-o",
+                                        _dir_in(c, "code")], []),
+    "export-output-under-a-file": lambda c: (["export", c.fit1d, "--lang", "c", "-o",
+                                              _file_in(c) / "x.c"], []),
+    "sample-output-dir-named-npy": lambda c: (["sample", c.cdf, "-n", "5", "-o",
+                                               _dir_in(c, "s.npy")], []),
+    "sample-output-dash": lambda c: (["sample", c.cdf, "-n", "5", "-o", "-"], []),
+    "plot-output-dir-named-png": lambda c: (["plot", c.fit1d, "-o", _dir_in(c, "p.png")], []),
+    "plot-output-dash": lambda c: (["plot", c.fit1d, "-o", "-"], []),
+    "report-output-under-a-file": lambda c: (["report", c.fit1d, "-o", _file_in(c) / "rep"], []),
+    "report-output-link-to-file": lambda c: (
+        ["report", c.fit1d, "-o", _link_to(c, _file_in(c))], []),
+    "report-output-dash": lambda c: (["report", c.fit1d, "-o", "-"], [c.tmp / "-"]),
+    "demo-cdf-output-is-file": lambda c: (["demo", "cdf", "-o", _file_in(c)], []),
+    "batch-output-under-a-file": lambda c: (
+        ["batch", c.write("m.toml", f'[defaults]\ndt = 0.1\n[[inputs]]\npath = "{c.csv1d}"\n'),
+         "-o", _file_in(c) / "b"], []),
+}
+
+
+def _link_to(c: Ctx, target: Path) -> Path:
+    link = c.tmp / "link"
+    if not link.is_symlink():
+        link.symlink_to(target)
+    return link
+
+
+# --------------------------------------------------------------------------- numeric bounds
+BOUND_CASES: dict[str, Build] = {
+    "sample-n-2^63": _sample_opts("-n", "9223372036854775808"),
+    "sample-n-1e20": _sample_opts("-n", "99999999999999999999"),
+    "cdf-points-2^63": lambda c: (["cdf", c.write("s.txt", "\n".join(
+        str(v / 7) for v in range(60))), "--from", "samples", "--points",
+        "9223372036854775808", "-o", c.out], [c.out]),
+    "cdf-grid-2^63": _cdf_opts("--grid", "9223372036854775808"),
+    "cdf-grid-1e20": _cdf_opts("--grid", "99999999999999999999"),
+    "batch-workers-2^63": _manifest('[defaults]\ndt = 0.1\n[[inputs]]\npath = "@CSV@"\n',
+                                    opts=("--workers", "9223372036854775808")),
+    "batch-allowed-failures-2^63": _manifest(
+        '[defaults]\ndt = 0.1\n[[inputs]]\npath = "@CSV@"\n',
+        opts=("--allowed-failures", "9223372036854775808")),
+    "brdf-compare-starts-2^63": lambda c: (
+        ["brdf", "compare", c.data / "alta" / "brdf_small_simu_two_layers_txt.alta",
+         "--model", "lambert", "--starts", "9223372036854775808"], []),
+    "brdf-compare-starts-0": lambda c: (
+        ["brdf", "compare", c.data / "alta" / "brdf_small_simu_two_layers_txt.alta",
+         "--model", "lambert", "--starts", "0"], []),
+    "render-seed-negative": lambda c: (["render", c.fit1d, "-o", c.tmp / "fresh" / "r.png",
+                                        "--seed", "-1"], [c.tmp / "fresh"]),
+    "render-seed-2^32": lambda c: (["render", c.fit1d, "-o", c.tmp / "fresh" / "r.png",
+                                    "--seed", str(2**32)], [c.tmp / "fresh"]),
+    "render-cosine-weight-nan": lambda c: (["render", c.fit1d, "-o", c.tmp / "fresh" / "r.png",
+                                            "--cosine-weight", "nan"], [c.tmp / "fresh"]),
+    "tolerance-rtol-nan-click": _tol_opts("--n", "2", "--m", "2", "--rtol", "NaN"),
+}
+
+
+# what the one error line must name (the option, not some later failure)
+_BOUND_SAYS = {
+    "sample-n-2^63": "'-n'", "sample-n-1e20": "'-n'", "cdf-points-2^63": "--points",
+    "cdf-grid-2^63": "--grid", "cdf-grid-1e20": "--grid", "batch-workers-2^63": "--workers",
+    "batch-allowed-failures-2^63": "--allowed-failures",
+    "brdf-compare-starts-2^63": "--starts", "brdf-compare-starts-0": "starts",
+    "render-seed-negative": "--seed", "render-seed-2^32": "--seed",
+    "render-cosine-weight-nan": "--cosine-weight", "tolerance-rtol-nan-click": "rtol",
+}
+
+
 def all_cases() -> list[Case]:
     cases = data_cases() + binary_cases() + fit_file_cases() + usage_cases()
     cases += misparse_cases()
     cases += [Case(f"option-{k}", b) for k, b in OPTION_CASES.items()]
     cases += [Case(f"batch-{k}", b) for k, b in BATCH_CASES.items()]
     cases += [Case(f"npz-{k}", b) for k, b in NPZ_CASES.items()]
+    cases += resealed_cases()
+    cases += [Case(f"output-{k}", b) for k, b in OUTPUT_CASES.items()]
+    cases += [Case(f"bound-{k}", b, _BOUND_SAYS.get(k, "")) for k, b in BOUND_CASES.items()]
     return cases

@@ -38,7 +38,30 @@ def good(tmp_path_factory: pytest.TempPathFactory, shared_data: Path) -> dict[st
     cdf = d / "cdf.json"
     res = _cli("cdf", pdf, "--from", "pdf", "--abs-width", "0.01", "-o", cdf)
     assert res.exit_code == 0, res.output
-    return {"fit": fit, "cdf": cdf, "csv": csv, "data": shared_data}
+    brdf_data, brdf = d / "synth.alta", d / "brdf.json"
+    _synthetic_brdf(brdf_data)
+    res = _cli("brdf", "fit", brdf_data, "--param", "COS_TH_TD_PD", "--dt", "0.1",
+               "--abs-width", "1e-4", "--max-total", "30", "-o", brdf)
+    assert res.exit_code == 0, res.output
+    return {"fit": fit, "cdf": cdf, "csv": csv, "data": shared_data, "brdf": brdf,
+            "brdf_data": brdf_data}
+
+
+def _synthetic_brdf(path: Path) -> None:
+    """A dull GGX lobe on 600 random isotropic direction pairs (fits in about a second)."""
+    from ratfit.brdf.parametrizations import get_parametrization
+    from ratfit.io.data import write_alta
+
+    rng = np.random.default_rng(5)
+    par = get_parametrization("ISOTROPIC_TV_TL_DPHI")
+    c = np.column_stack([rng.uniform(0.05, 1.3, 600), rng.uniform(0.05, 1.3, 600),
+                         rng.uniform(-np.pi, np.pi, 600)])
+    L, V = par.to_dirs(c)
+    h = L + V
+    cos_h = h[:, 2] / np.linalg.norm(h, axis=1)
+    lobe = 0.1225 / (np.pi * ((0.1225 - 1.0) * cos_h * cos_h + 1.0) ** 2)
+    write_alta(path, c, (0.05 + 0.12 * lobe)[:, None], param_in="ISOTROPIC_TV_TL_DPHI",
+               param_out="INV_STERADIAN")
 
 
 def check_bad_input(res, outs: list[Path], expect: str = "") -> str:
@@ -61,7 +84,8 @@ def check_bad_input(res, outs: list[Path], expect: str = "") -> str:
 
 @pytest.mark.parametrize("case", CASES, ids=[c.id for c in CASES])
 def test_hostile_input(case: Case, good: dict[str, Path], tmp_path: Path) -> None:
-    ctx = Ctx(tmp_path, good["data"], good["fit"], good["cdf"], good["csv"])
+    ctx = Ctx(tmp_path, good["data"], good["fit"], good["cdf"], good["csv"], good["brdf"],
+              good["brdf_data"])
     args, outs = case.build(ctx)
     check_bad_input(_cli(*args), outs, case.expect)
 

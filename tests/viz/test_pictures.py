@@ -212,3 +212,47 @@ def test_slice_rows_pick_the_fullest_line_or_a_slab_on_scattered_data():
     # a given point keeps the exact line through it
     rows, at2, slab = pic._slice_rows(pts, 1, pts[7])
     assert slab == 0.0 and rows.sum() == 1 and np.array_equal(at2, pts[7])
+
+
+# ---------------------------------------------------------------------------- names as text
+NAMES_WITH_DOLLARS = ["$\\oops$", "a$b$c", "$x^2$", "cost $5 and $6", "\\$x$"]
+
+
+@pytest.mark.parametrize("name", NAMES_WITH_DOLLARS)
+def test_names_from_files_are_never_mathtext(tmp_path: Path, monkeypatch, name: str) -> None:
+    """A channel or column name holding `$` is drawn as written: never parsed as mathtext
+    (a malformed formula such as $\\oops$ stopped the picture with exit 3 before)."""
+    from matplotlib import cbook
+    from matplotlib.text import Text
+
+    from ratfit.viz import _figures
+
+    x = np.linspace(0.0, 2.0, 40).tolist()
+    data = tmp_path / "d.csv"
+    data.write_text(f"x{name},y_{name}\n" + "".join(f"{a!r},{1 / (1 + a * a) + 0.5!r}\n"
+                                                     for a in x))
+    fit = tmp_path / "fit.json"
+    run = CliRunner()
+    res = run.invoke(main, ["fit", str(data), "--dt", "0.01", "-o", str(fit)])
+    assert res.exit_code == 0, res.output
+    assert json.loads(fit.read_text())["channels"][0]["name"] == name
+    shown: list[str] = []
+    real_close = _figures.close
+
+    def keep_texts(fig) -> None:
+        for t in fig.findobj(Text):
+            raw = t.get_text()
+            if raw:
+                assert not cbook.is_math_text(raw), raw
+                shown.append(t._preprocess_math(raw)[0])  # what is drawn
+        real_close(fig)
+
+    monkeypatch.setattr(_figures, "close", keep_texts)
+    for args in (["plot", str(fit), "--data", str(data), "-o", str(tmp_path / "p.png")],
+                 ["plot", str(fit), "--data", str(data), "--kind", "error", "-o",
+                  str(tmp_path / "e.png")],
+                 ["report", str(fit), "--data", str(data), "-o", str(tmp_path / "r")]):
+        res = run.invoke(main, args)
+        assert res.exit_code == 0, res.output
+    assert any(name in s for s in shown)  # the channel name, drawn verbatim
+    assert any(f"x{name}" in s for s in shown)  # the column name too

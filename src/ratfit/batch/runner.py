@@ -34,17 +34,23 @@ An entry may also be a bare glob string, or carry its own ``settings`` list
 
 Layout of OUTDIR, one file per finished task, each written atomically::
 
-    <input>.<channel>.<settings id>.json   verified fit (``ratfit.fitfile``); its
-                                           provenance["batch"] holds the summary row
-    .rows/<same name>.json                 row of a task with no verified fit ("no-fit")
-                                           or that raised ("failed")
-    summary.csv, summary.parquet           one row per task, rewritten at the end
+    <input>.<channel>.<settings id>-<key>.json   verified fit (``ratfit.fitfile``); its
+                                                 provenance["batch"] holds the summary row
+    .rows/<same name>.json                       row of a task with no verified fit
+                                                 ("no-fit") or that raised ("failed")
+    summary.csv, summary.parquet                 one row per task, rewritten at the end
 
-The client writes every file (workers only compute), so a worker that dies or a
-Ctrl-C cannot leave a partial file, and with ``scheduler=`` only the inputs need
-to be visible to the workers (at the same absolute paths). Resume: a task whose
-fit file (or no-fit/failed row) exists for the same input content and settings is
-not run again; failed and no-fit tasks run again only with ``rerun_failed``.
+``key`` hashes the input, the exact channel name and the settings id: channels whose
+names read alike once made file-safe (``a b``, ``a_b``) get different names. A new
+OUTDIR is built beside its place and moved there when the batch ends (or is stopped
+by Ctrl-C); an error leaves nothing. The client writes every file (workers only
+compute), so a worker that dies or a Ctrl-C cannot leave a partial file, and with
+``scheduler=`` only the inputs need to be visible to the workers (at the same
+absolute paths). Resume: a task whose fit file (or no-fit/failed row) exists for the
+same input content and settings is not run again, once its fit file has loaded
+(digest, types, no pole; a BRDF file's block too) and, for a data file's channel, its
+function met the task's segments on the data again; failed and no-fit tasks run again
+only with ``rerun_failed``.
 """
 
 from __future__ import annotations
@@ -61,13 +67,14 @@ import time
 import tomllib
 import traceback
 import uuid
+import warnings
 from collections import OrderedDict
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from ratfit._atomic import atomic_open, atomic_path
+from ratfit._atomic import atomic_dir, atomic_open, atomic_path
 from ratfit.brdf.options import BRDF_SOLVER
 from ratfit.core.options import FIT_OPTIONS, SEGMENT_OPTIONS
 from ratfit.core.validation import check_bool, check_choice, check_int, check_width
@@ -432,6 +439,17 @@ def _safe(text: str) -> str:
     return _SAFE.sub("_", text).strip("._") or "_"
 
 
+def result_name(label: str, shown: str, channel: str, sid: str) -> str:
+    """``<input>.<channel>.<settings id>-<key>``: readable, and unique by construction.
+
+    The readable part drops characters a file name cannot hold (channels ``a b`` and
+    ``a_b`` read alike); ``key`` hashes the input as the summary names it, the exact
+    channel name and the settings id, so two different fits never share a name.
+    """
+    key = hashlib.sha256(json.dumps([shown, channel, sid]).encode()).hexdigest()[:8]
+    return f"{_safe(label.replace('/', '--'))}.{_safe(channel)}.{sid}-{key}"
+
+
 def _display(path: Path, base: Path) -> str:
     try:
         return path.relative_to(base).as_posix()
@@ -480,15 +498,15 @@ def plan(
                 if path not in digests:
                     digests[path] = file_sha256(path)
                 for j, chan, s_task in _task_channels(e, data, shown, s):
-                    name = f"{_safe(label.replace('/', '--'))}.{_safe(chan)}.{sid}"
+                    name = result_name(label, shown, chan, sid)
                     task = Task(name, shown, str(path), digests[path], chan, j, sid, s_task)
                     prev = seen.get(name)
                     if prev is not None:
-                        if prev.path != task.path:
+                        if (prev.path, prev.channel) != (task.path, task.channel):
+                            # two different fits under one name: only a hash collision
                             raise InputError(
-                                f"{e.where}: {prev.path} and {path} both give the result "
-                                f"name {name!r}; match them with one glob (e.g. '*/file.csv') "
-                                "so that their folder becomes part of the name"
+                                f"{e.where}: {prev.path} channel {prev.channel!r} and {path} "
+                                f"channel {chan!r} both give the result name {name!r}"
                             )
                         continue  # the same fit asked for twice
                     seen[name] = task
@@ -677,17 +695,17 @@ def _row_path(outdir: Path, task: Task) -> Path:
 
 
 def _previous(outdir: Path, task: Task) -> dict[str, Any] | None:
-    """The stored row of a finished task, if it is for the same input content."""
+    """The stored row of a finished task, if it is for the same input content.
+
+    A fit file is believed only after the checks a first run would pass: it loads
+    (digest, field types, no pole), it is one verified channel of this input's content,
+    channel and settings, and its function meets this task's segments on the data.
+    Anything else is fitted again (and atomically replaced)."""
     fp = _fit_path(outdir, task)
     if fp.is_file():
-        try:
-            doc = json.loads(fp.read_text())
-            row = doc["provenance"]["batch"]
-            if (doc["provenance"].get("input_sha256") == task.input_sha256
-                    and row["settings_id"] == task.settings_id and row["status"] == "ok"):
-                return row
-        except (OSError, ValueError, KeyError, TypeError):
-            pass  # unreadable or foreign file: fit again (atomically replaced)
+        row = _verified_result(fp, task)
+        if row is not None:
+            return row
     rp = _row_path(outdir, task)
     if rp.is_file():
         try:
@@ -695,9 +713,53 @@ def _previous(outdir: Path, task: Task) -> dict[str, Any] | None:
             same = row.get("input_sha256") == task.input_sha256
             if same and row["status"] in ("no-fit", "failed"):
                 return row
-        except (OSError, ValueError, KeyError, TypeError):
+        except (OSError, ValueError, KeyError, TypeError, AttributeError):
             pass
     return None
+
+
+def _verified_result(path: Path, task: Task) -> dict[str, Any] | None:
+    """The summary row of a result file that re-verifies for ``task``, else None."""
+    import numpy as np
+
+    from ratfit.core.segments import Segments
+    from ratfit.io.fitfile import load_fit, segment_check
+
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")  # an old or edited file is refitted, not used
+            saved = load_fit(path, trust_edited=False)
+        prov = saved.provenance
+        row = prov.get("batch")
+        if (saved.integrity != "sealed" or not saved.verified or not isinstance(row, dict)
+                or ",".join(c.name for c in saved.channels) != task.channel
+                or prov.get("input_sha256") != task.input_sha256
+                or row.get("settings_id") != task.settings_id or row.get("status") != "ok"):
+            return None
+        s = task.settings
+        if s.get("kind") == "brdf":
+            # a BRDF file's fit: its block loads too (parametrization, dropped coordinates);
+            # its segments are not rebuilt here (the default widths are the fit's own)
+            from ratfit.brdf.fitter import load_brdf_fit
+
+            load_brdf_fit(path)
+            return {**row, "verified": True}
+        seg = _dataset(task.path, s["format"], s["dim"]).segments(dt=s["dt"],
+                                                                  abs_width=s["abs_width"])
+        j = task.channel_index
+        seg = Segments(seg.x, seg.lo[:, [j]], seg.hi[:, [j]], None, (seg.names[j],))
+        dom = saved.space.domain
+        pad = 1e-12 * (dom[:, 1] - dom[:, 0])
+        if seg.x.shape[1] != dom.shape[0] or not np.all(
+                (seg.x >= dom[:, 0] - pad) & (seg.x <= dom[:, 1] + pad)):
+            return None  # data outside the fit's domain: nothing says it has no pole there
+        _, met, total, _ = segment_check(saved, seg)[0]
+        if met != total:
+            return None
+    except Exception:  # unreadable, foreign or inconsistent: fit again
+        return None
+    rf = saved.channels[0].rational
+    return {**row, "n": rf.n, "m": rf.m, "total": rf.total, "verified": True}
 
 
 def _store(outdir: Path, task: Task, row: dict[str, Any], doc: dict[str, Any] | None) -> None:
@@ -855,11 +917,35 @@ def run(
     out = Path(outdir)
     if out.exists() and not out.is_dir():
         raise InputError(f"{out}: output folder is a file")
-    tasks, unreadable = plan(manifest, base_dir)  # atomic writes create ``out`` when needed
+    tasks, unreadable = plan(manifest, base_dir)
+    todo_args = (tasks, unreadable, client, scheduler, workers, allowed_failures, progress,
+                 on_result, rerun_failed)
+    if out.is_dir():
+        # an existing folder holds earlier results: each result is written into it
+        # atomically as it comes (what a resumed run picks up)
+        return _run_into(out, out, *todo_args)
+    # a new folder is built beside its place and moved there at the end (also after
+    # Ctrl-C: what is finished is kept for the next run); on an error nothing is left
+    stopped: BatchInterrupted | None = None
+    with atomic_dir(out) as work:
+        try:
+            summary = _run_into(work, out, *todo_args)
+        except BatchInterrupted as exc:
+            stopped = exc
+    if stopped is not None:
+        raise stopped
+    return summary
+
+
+def _run_into(work: Path, out: Path, tasks: list[Task], unreadable: list[dict[str, Any]],
+              client: Any, scheduler: str | None, workers: int | None, allowed_failures: int,
+              progress: bool, on_result: Callable[[dict[str, Any]], None] | None,
+              rerun_failed: bool) -> BatchSummary:
+    """Run ``tasks`` writing into ``work``; the summary names files in ``out``."""
     rows: dict[str, dict[str, Any]] = {}
     todo: list[Task] = []
     for t in tasks:
-        prev = _previous(out, t)
+        prev = _previous(work, t)
         if prev is not None and (prev["status"] == "ok" or not rerun_failed):
             rows[t.name] = {**_public(prev), "resumed": True}
         else:
@@ -877,7 +963,8 @@ def run(
             if r is not None:
                 ordered.append(r)
         summary.rows = ordered + unreadable
-        summary.csv, summary.parquet = write_summary(summary.rows, out)
+        csv_path, pq_path = write_summary(summary.rows, work)
+        summary.csv, summary.parquet = out / csv_path.name, out / pq_path.name
         return summary
 
     if not todo:
@@ -898,7 +985,7 @@ def run(
                 except Exception as exc:  # KilledWorker, lost data, cancellation by others
                     row, doc = _row(t.input, t.channel, t.settings_id, t.settings, "failed",
                                     message=f"{type(exc).__name__}: {exc}"), None
-                _store(out, t, row, doc)
+                _store(work, t, row, doc)
                 rows[t.name] = row
                 summary.fitted += 1
                 bar.advance(row["status"])

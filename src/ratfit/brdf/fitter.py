@@ -289,6 +289,7 @@ def fit_brdf(ds: Dataset, *, dt: float | None = None, abs_width: float | None = 
         "verified_on": ("all samples" if not ds.meta.get("subset") else
                         f"a random subset of {ds.meta['subset']['points']} of "
                         f"{ds.meta['subset']['of']} samples"),
+        "subset": ({"points": int(sub["points"]), "of": int(sub["of"])} if sub else None),
         "dropped_coords": {str(int(i)): float(full.x[0, i]) for i in dropped},
         # what "verified" covered beyond the samples, per channel
         "validity": [_validity_line(v, pr) for v, pr in
@@ -1095,7 +1096,15 @@ def load_brdf_fit(path: str | os.PathLike[str]) -> BRDFFit:
             "(written by `ratfit fit`, not `ratfit brdf fit`)"
         )
     p = get_parametrization(str(meta["parametrization"]))
-    dropped = tuple(sorted(int(k) for k in (meta.get("dropped_coords") or {})))
+    # (load_fit has checked the block's field types: dropped_coords maps digit strings
+    # to numbers)
+    dropped = tuple(sorted({int(k) for k in (meta.get("dropped_coords") or {})}))
+    if len(dropped) != len(meta.get("dropped_coords") or {}) or any(
+            not 0 <= k < p.dim for k in dropped):
+        raise FileFormatError(
+            f"{path}: 'brdf.dropped_coords' names coordinates {sorted(meta['dropped_coords'])} "
+            f"but {p.name} has coordinates 0..{p.dim - 1} (each at most once)"
+        )
     if p.dim - len(dropped) != saved.space.dim:
         raise FileFormatError(
             f"{path}: parametrization {p.name} has {p.dim} coordinates but the fit has "

@@ -8,7 +8,7 @@ from pathlib import Path
 import click
 
 from ratfit.cli.main import EXIT_NO_FIT, _write_json, console, fit_table, main
-from ratfit.cli.options import aliased_option
+from ratfit.cli.options import MAX_WORKERS, aliased_option
 
 EXIT_INTERRUPTED = 130
 
@@ -20,11 +20,11 @@ EXIT_INTERRUPTED = 130
               help="Folder for the fit files and summary.csv / summary.parquet.")
 @click.option("--scheduler", metavar="ADDRESS",
               help="Address of a running Dask scheduler (default: start a local cluster).")
-@click.option("--workers", type=click.IntRange(min=1),
+@click.option("--workers", type=click.IntRange(1, MAX_WORKERS),
               help="Worker processes of the local cluster (default: one per core).")
 @click.option("--rerun-failed", is_flag=True,
               help="Run again the tasks that failed or found no verified fit.")
-@click.option("--allowed-failures", type=click.IntRange(min=0), default=3, show_default=True,
+@click.option("--allowed-failures", type=click.IntRange(0, 10**6), default=3, show_default=True,
               help="Worker deaths a task may witness before it counts as failed "
                    "(local cluster only).")
 @click.option("--json", "as_json", is_flag=True, help="Print one JSON object on stdout.")
@@ -83,4 +83,5 @@ def _print_batch(summary) -> None:
         if r["status"] == "failed":
             what = f"{r['input']} {r['channel']} {r['settings_id']}: {r['message']}"
             con.print(f"[bold red]failed[/] {escape(what)}", highlight=False)
-    con.print(f"wrote {summary.csv} and {summary.parquet}", highlight=False)
+    con.print(f"wrote {escape(str(summary.csv))} and {escape(str(summary.parquet))}",
+              highlight=False)

@@ -15,7 +15,9 @@ from ratfit.cli.main import (
     _print_report,
     _progress,
     _write_json,
+    csv_line,
     main,
+    stdout_guard,
     trust_edited_option,
 )
 from ratfit.cli.options import aliased_option, check_size_flags, fit_options, pop_fit_params
@@ -178,10 +180,11 @@ def brdf_eval(fit_path: Path, dirs: Path | None, coords: Path | None, data: Path
         with atomic_open(output, "wb") as fh:
             np.save(fh, vals)
         return
-    lines = [",".join(cols + names)]
+    lines = [csv_line(cols + names)]
     lines += [",".join(repr(float(v)) for v in row) for row in np.hstack([table, vals])]
     if output is None:
-        click.echo("\n".join(lines))
+        with stdout_guard():
+            click.echo("\n".join(lines))
     else:
         with atomic_open(output, "w") as fh:
             fh.write("\n".join(lines) + "\n")

@@ -26,9 +26,17 @@ from ratfit.cli.main import (
     _write_json,
     demo_group,
     main,
+    stdout_guard,
     trust_edited_option,
 )
-from ratfit.cli.options import aliased_option, fit_options, pop_fit_params
+from ratfit.cli.options import (
+    MAX_DRAWS,
+    MAX_POINTS,
+    FiniteFloatRange,
+    aliased_option,
+    fit_options,
+    pop_fit_params,
+)
 from ratfit.errors import FileFormatError, InputError, RatfitError
 from ratfit.jobs.common import results_summary
 
@@ -139,11 +147,11 @@ def _one_domain(pairs: list[list[float]] | None) -> tuple[float, float] | None:
               help="Relative width on the tail probability: F +- dt*min(F, 1-F).")
 @click.option("--abs-width", type=float,
               help="Absolute half-width (default 1e-3 when --dt is not given either).")
-@click.option("--confidence", type=click.FloatRange(0, 1, min_open=True, max_open=True),
+@click.option("--confidence", type=FiniteFloatRange(0, 1, min_open=True, max_open=True),
               default=0.99, show_default=True, help="DKW band confidence for samples.")
-@click.option("--points", type=click.IntRange(min=2), default=256, show_default=True,
+@click.option("--points", type=click.IntRange(2, MAX_POINTS), default=256, show_default=True,
               help="ECDF evaluation points (quantiles) for samples.")
-@click.option("--grid", type=click.IntRange(min=0), default=0, show_default=True,
+@click.option("--grid", type=click.IntRange(0, MAX_POINTS), default=0, show_default=True,
               help="K extra monotone constraint points, uniform on the domain.")
 @click.option("--form", type=click.Choice(["two-row", "max"]), default="two-row",
               show_default=True, help="Derivative constraints: seed eq. 3 or eq. 5.")
@@ -212,7 +220,8 @@ def cdf_cmd(input_path: Path, output: Path | None, source: str | None, fmt: str 
 @main.command("sample")
 @trust_edited_option
 @click.argument("fit_path", metavar="CDF.json", type=click.Path(dir_okay=False, path_type=Path))
-@click.option("-n", "count", type=click.IntRange(min=1), required=True, help="Number of draws.")
+@click.option("-n", "count", type=click.IntRange(1, MAX_DRAWS), required=True,
+              help="Number of draws.")
 @click.option("--seed", type=click.IntRange(min=0), default=None,
               help="Seed of numpy's default Generator (default: fresh entropy).")
 @click.option("-o", "--output", type=click.Path(dir_okay=False, path_type=Path),
@@ -239,7 +248,8 @@ def sample_cmd(fit_path: Path, count: int, seed: int | None, output: Path | None
                      "min": float(draws.min()), "max": float(draws.max()),
                      "seconds": round(secs, 6)})
     elif output is None:
-        click.echo("\n".join(repr(float(v)) for v in draws))
+        with stdout_guard():
+            click.echo("\n".join(repr(float(v)) for v in draws))
 
 
 # ---------------------------------------------------------------------------- demo cdf

@@ -6,6 +6,7 @@ import sys
 from pathlib import Path
 
 import click
+from rich.markup import escape
 
 from ratfit.cli.main import EXIT_NO_FIT, _write_json, console, demo_group, fit_table
 from ratfit.cli.options import aliased_option, fit_options
@@ -60,6 +61,6 @@ def demo_addendum(outdir: Path, solver: str, cross_check: str, jobs: int | None,
                 f"(10x denser grid): max rel. error {dense:.3g}"
             )
         for p in figs:
-            con.print(f"wrote {p}")
+            con.print(f"wrote {escape(str(p))}")
     if not (doc["minimal"]["verified"] and doc["minimal_seed_form"]["verified"]):
         sys.exit(EXIT_NO_FIT)

@@ -27,14 +27,17 @@ _FILE = click.Path(dir_okay=False, path_type=Path)
 @click.option("--prefix", default="ratfit", show_default=True, help="Prefix of every name.")
 def export_cmd(fit_path: Path, lang: str, output: Path, form: str, prefix: str) -> None:
     """Write C, GLSL or Python source evaluating a saved (verified) fit."""
+    from ratfit._atomic import is_stream
     from ratfit.export.code import export_fit
 
     res = export_fit(fit_path, lang, output, form=form, prefix=prefix)
+    err = is_stream(output)  # code on stdout (-o -, a pipe): the notes go to stderr
     for line in res.describe():
-        click.echo(line)
+        click.echo(line, err=err)
     if res.parametrization:
-        click.echo(f"directions -> {res.parametrization}: {prefix}_coords, {prefix}_brdf")
-    click.echo(f"wrote {output}")
+        click.echo(f"directions -> {res.parametrization}: {prefix}_coords, {prefix}_brdf",
+                   err=err)
+    click.echo(f"wrote {output}", err=err)
 
 
 @main.command("plot")
@@ -239,7 +242,7 @@ def _register_compare(group: click.Group) -> None:
                        "(repeatable). Lobes: lambert, blinn, ward, beckmann, ggx, lafortune.")
     @click.option("--param", default=None,
                   help="Parametrization for --model-only runs (default: the file's).")
-    @click.option("--starts", type=int, default=8, show_default=True,
+    @click.option("--starts", type=click.IntRange(1, 1000), default=8, show_default=True,
                   help="Random starts per analytic fit.")
     @click.option("--json", "as_json", is_flag=True, help="Print one JSON object on stdout.")
     @trust_edited_option

@@ -14,7 +14,9 @@ from ratfit.cli.main import (
     _print_report,
     _progress,
     _write_json,
+    csv_line,
     main,
+    stdout_guard,
     trust_edited_option,
 )
 from ratfit.cli.options import check_size_flags, fit_options, pop_fit_params, segment_options
@@ -110,12 +112,13 @@ def eval_cmd(fit_path: Path, input_path: Path, output: Path | None, fmt: str | N
         with atomic_open(output, "wb") as fh:
             np.save(fh, vals)
         return
-    header = ",".join([f"x{k}" for k in range(data.dim)] + names)
+    header = csv_line([f"x{k}" for k in range(data.dim)] + names)
     body = np.hstack([data.x, vals])
     if output is None:
-        click.echo(header)
-        for row in body:
-            click.echo(",".join(repr(float(v)) for v in row))
+        with stdout_guard():
+            click.echo(header)
+            for row in body:
+                click.echo(",".join(repr(float(v)) for v in row))
     else:
         with atomic_open(output, "w") as fh:
             fh.write(header + "\n")

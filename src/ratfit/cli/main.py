@@ -1,10 +1,13 @@
 """Command-line interface: parse, call the library, print or write. No fitting logic.
 
-Exit codes: 0 success, 1 a run that found no verified fit, 2 bad input or usage.
+Exit codes: 0 success, 1 a run that found no verified fit, 2 bad input or usage,
+74 the work was done but writing to standard output failed (a full device: the
+message lists the files that were written and are complete), 130 Ctrl-C.
 """
 
 from __future__ import annotations
 
+import contextlib
 import json
 import os
 import sys
@@ -22,6 +25,8 @@ from ratfit.errors import RatfitError
 EXIT_NO_FIT = 1
 EXIT_BAD_INPUT = 2
 EXIT_INTERRUPTED = 130
+# sysexits.h EX_IOERR: not "bad input, no file" (2): the fit file may well be written
+EXIT_STDOUT_FAILED = 74
 # Without a terminal, a progress line on stderr at most this often (seconds).
 PROGRESS_EVERY = 5.0
 
@@ -39,6 +44,27 @@ def _usage_message(exc: click.UsageError) -> str:
         return f"error: {msg}"
     usage = one_line(ctx.get_usage()).removeprefix("Usage: ")
     return f"error: {msg} (usage: {usage}; see '{ctx.command_path} --help')"
+
+
+class StdoutError(Exception):
+    """Writing to standard output failed (not a closed pipe): the command's work is done."""
+
+    def __init__(self, exc: OSError) -> None:
+        super().__init__(str(exc))
+        self.exc = exc
+
+
+@contextlib.contextmanager
+def stdout_guard():
+    """Turn a failed write to standard output (ENOSPC, EIO, ...) into :class:`StdoutError`."""
+    try:
+        yield
+    except BrokenPipeError:
+        raise
+    except OSError as exc:
+        if exc.filename is not None:
+            raise
+        raise StdoutError(exc) from None
 
 
 class _Main(click.Group):
@@ -68,6 +94,9 @@ class _Main(click.Group):
         sys.exit(rv if isinstance(rv, int) else 0)
 
     def invoke(self, ctx: click.Context) -> Any:
+        from ratfit._atomic import forget_completed
+
+        forget_completed()
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("default")
             try:
@@ -108,6 +137,15 @@ class _Main(click.Group):
         except RatfitError as exc:
             click.echo(f"error: {one_line(str(exc))}", err=True)
             ctx.exit(EXIT_BAD_INPUT)
+        except StdoutError as exc:
+            from ratfit._atomic import completed
+
+            done = completed()
+            said = (f"; written before that and complete: {', '.join(done)}" if done
+                    else "; no output file was written")
+            click.echo(f"error: could not write to standard output "
+                       f"({exc.exc.strerror or exc.exc}){said}", err=True)
+            ctx.exit(EXIT_STDOUT_FAILED)
         except OSError as exc:
             name = f"{exc.filename}: " if exc.filename else ""
             click.echo(f"error: {one_line(name + str(exc.strerror or exc))}", err=True)
@@ -223,8 +261,22 @@ def _progress(enabled: bool) -> tuple[Callable | None, Callable[[], None]]:
     return cb, status.stop
 
 
+def csv_line(fields: Any) -> str:
+    """One CSV record, fields quoted by the csv module wherever they hold a comma, a
+    quote, CR or LF: a channel name read from a file never adds a column or a row."""
+    import csv
+    import io
+
+    buf = io.StringIO()
+    # "\r\n" as the terminator makes the writer quote a lone CR too; it is cut off here
+    csv.writer(buf, lineterminator="\r\n").writerow([str(f) for f in fields])
+    return buf.getvalue()[:-2]
+
+
 def _write_json(obj: Any) -> None:
-    click.echo(json.dumps(obj, indent=1, allow_nan=False))
+    text = json.dumps(obj, indent=1, allow_nan=False)
+    with stdout_guard():
+        click.echo(text)
 
 
 def console(pipe_width: int = 120) -> Any:
@@ -244,8 +296,13 @@ def fit_table(con: Any, title: str, columns: list[str], rows: list[list[str]],
     while it is too wide, and what remains wraps instead of ending in "...": a number
     is never shown cut short. Returns the table and the names of dropped columns."""
     from rich import box
+    from rich.markup import escape
     from rich.table import Table
 
+    # cells and title hold text from files (channel, file and model names): shown as
+    # written, never read as rich markup ("[/]" would stop the command)
+    title = escape(title)
+    rows = [[escape(str(c)) for c in r] for r in rows]
     dropped: list[str] = []
     while True:
         keep = [j for j, c in enumerate(columns) if c not in dropped]
@@ -269,6 +326,13 @@ SHOWN_DISAGREEMENTS = 3
 def _print_report(results, out: Path | None, verified_as: str | None = None) -> None:
     """``verified_as``: what the verified column says of a success instead of "yes"
     (a fit verified on a subset of the data says "subset")."""
+    with stdout_guard():
+        _report_table(results, out, verified_as)
+
+
+def _report_table(results, out: Path | None, verified_as: str | None) -> None:
+    from rich.markup import escape as esc
+
     con = console()
     cols = ["channel", "n", "m", "total", "verified", "max viol.", "Linf", "RMSE", "max rel.",
             "delta", "QPs", "s"]
@@ -290,19 +354,20 @@ def _print_report(results, out: Path | None, verified_as: str | None = None) -> 
         con.print(f"(narrow terminal: {', '.join(dropped)} in --json)", highlight=False)
     for r in results:
         if not r.success:
-            con.print(f"[bold red]{r.channel}[/]: {r.message}")
+            con.print(f"[bold red]{esc(r.channel)}[/]: {esc(r.message)}")
         elif r.time_limited:
-            con.print(f"[yellow]{r.channel}*[/]: {r.message}", highlight=False)
+            con.print(f"[yellow]{esc(r.channel)}*[/]: {esc(r.message)}", highlight=False)
         # a few, then a count: on a large fit DAQP's false "infeasible" (each one
         # cross-checked) came as 25 lines per channel
         for d in r.disagreements[:SHOWN_DISAGREEMENTS]:
-            con.print(f"[yellow]{r.channel} solver disagreement[/] {d}")
+            con.print(f"[yellow]{esc(r.channel)} solver disagreement[/] {esc(str(d))}")
         if len(r.disagreements) > SHOWN_DISAGREEMENTS:
-            con.print(f"[yellow]{r.channel}[/]: {len(r.disagreements) - SHOWN_DISAGREEMENTS} "
+            con.print(f"[yellow]{esc(r.channel)}[/]: "
+                      f"{len(r.disagreements) - SHOWN_DISAGREEMENTS} "
                       "more solver disagreement(s), each settled by a cross-check "
                       "(all in --json)", highlight=False)
     if out is not None:
-        con.print(f"wrote {out}", highlight=False)
+        con.print(f"wrote {esc(str(out))}", highlight=False)
 
 
 def _fmt(v: float | None) -> str:

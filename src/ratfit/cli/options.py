@@ -15,8 +15,25 @@ import click
 
 from ratfit.core.options import FIT_OPTIONS, SEGMENT_OPTIONS, Option
 
-__all__ = ["aliased_option", "check_size_flags", "fit_options", "pop_fit_params",
-           "segment_options"]
+__all__ = ["MAX_DRAWS", "MAX_POINTS", "MAX_WORKERS", "FiniteFloatRange", "aliased_option",
+           "check_size_flags", "fit_options", "pop_fit_params", "segment_options"]
+
+# Upper bounds of count options that size arrays or processes: a value beyond them is
+# one error line (exit 2), not numpy's "Maximum allowed size exceeded" or 2^63 processes.
+MAX_DRAWS = 10**9  # `sample -n`: 8 GB of draws
+MAX_POINTS = 10**6  # `cdf --points/--grid`: QP rows
+MAX_WORKERS = 1024  # `batch --workers` (the fitter's --jobs has the same bound)
+
+
+class FiniteFloatRange(click.FloatRange):
+    """``click.FloatRange`` that also refuses NaN (which no bound comparison catches)."""
+
+    def convert(self, value: Any, param: click.Parameter | None,
+                ctx: click.Context | None) -> Any:
+        rv = super().convert(value, param, ctx)
+        if rv != rv:
+            self.fail(f"{value!r} is not a number", param, ctx)
+        return rv
 
 F = Callable[..., Any]
 

@@ -9,6 +9,7 @@ import click
 import numpy as np
 
 from ratfit.cli.main import main
+from ratfit.cli.options import FiniteFloatRange
 
 
 @main.command("render")
@@ -30,7 +31,7 @@ from ratfit.cli.main import main
               show_default=True,
               help="fit: importance sampling with rational CDFs fitted to the BRDF; cosine: "
                    "cosine-weighted hemisphere.")
-@click.option("--cosine-weight", type=click.FloatRange(0.0, 1.0), default=0.2,
+@click.option("--cosine-weight", type=FiniteFloatRange(0.0, 1.0), default=0.2,
               show_default=True, help="Share of cosine samples mixed into fit sampling.")
 @click.option("--incidence-nodes", type=click.IntRange(1, 90), default=9, show_default=True,
               help="Fit sampling: incidence angles with their own CDFs (interpolated between).")
@@ -42,7 +43,8 @@ from ratfit.cli.main import main
 @click.option("--exposure", type=float, default=None,
               help="PNG scale (default: the 99.5th luminance percentile of the brighter of the "
                    "fit and data renders maps to 1).")
-@click.option("--seed", type=int, default=0, show_default=True)
+@click.option("--seed", type=click.IntRange(0, 2**32 - 1), default=0, show_default=True,
+              help="Mitsuba's sampler seed (32 bits).")
 @click.option("--variant", type=click.Choice(["auto", "llvm_ad_rgb", "scalar_rgb"]),
               default="auto", show_default=True, help="Mitsuba variant.")
 @click.option("--json", "as_json", is_flag=True, help="Print one JSON object on stdout.")

@@ -9,7 +9,7 @@ from typing import Any
 import click
 
 from ratfit.cli.main import EXIT_NO_FIT, _fmt, _write_json, main
-from ratfit.cli.options import fit_options, pop_fit_params
+from ratfit.cli.options import FiniteFloatRange, fit_options, pop_fit_params
 from ratfit.io.data import FORMATS
 from ratfit.jobs.common import results_summary
 
@@ -24,7 +24,7 @@ from ratfit.jobs.common import results_summary
                    "one [y-w, y+w] (as fit --abs-width).")
 @click.option("--absolute", "absolute_flag", is_flag=True, hidden=True,
               help="Old spelling of --width-kind absolute.")
-@click.option("--rtol", type=click.FloatRange(min=0, max=1, min_open=True, max_open=True),
+@click.option("--rtol", type=FiniteFloatRange(min=0, max=1, min_open=True, max_open=True),
               default=1e-3, show_default=True,
               help="Stop when the feasible width is within this ratio of an infeasible one.")
 @click.option("--format", "fmt", type=click.Choice(FORMATS),

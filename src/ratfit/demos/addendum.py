@@ -99,7 +99,8 @@ def addendum_json(run: dict[str, Any]) -> dict[str, Any]:
 
 
 def write_figures(run: dict[str, Any], outdir: str | Path) -> list[Path]:
-    """Figures 1-3 of the seed as PNG files in ``outdir``."""
+    """Figures 1-3 of the seed as PNG files in ``outdir`` (all three, or none)."""
+    from ratfit._atomic import atomic_dir
     from ratfit.viz.plots import plot_errors, plot_fits, plot_function
 
     outdir = Path(outdir)
@@ -108,8 +109,10 @@ def write_figures(run: dict[str, Any], outdir: str | Path) -> list[Path]:
     y = seg.center[:, 0]
     fits = {b: r.rational for b, r in run["fits"].items()}
     fits["minimal legendre " + f"({run['minimal'].n}+{run['minimal'].m})"] = run["minimal"].rational
-    return [
-        plot_function(x, y, outdir / "figure1_function.png"),
-        plot_fits(seg, fits, outdir / "figure2_fits.png"),
-        plot_errors(seg, fits, outdir / "figure3_errors.png"),
-    ]
+    with atomic_dir(outdir) as work:
+        made = [
+            plot_function(x, y, work / "figure1_function.png"),
+            plot_fits(seg, fits, work / "figure2_fits.png"),
+            plot_errors(seg, fits, work / "figure3_errors.png"),
+        ]
+    return [outdir / p.name for p in made]

@@ -801,7 +801,9 @@ def _validity(saved: SavedFit) -> str:
     if integrity == "legacy":
         return ("NOT VERIFIED: an old fit file without a content digest (cannot be told from "
                 "an edited one); refit to get a verified one. Domain as above.")
-    return "Valid on that domain only (the fit was verified on its data there)."
+    from ratfit.io.fitfile import scope_text
+
+    return "Valid on that domain only. " + scope_text(saved)
 
 
 def load_any_fit(path: str | os.PathLike[str]) -> tuple[SavedFit, Any]:

@@ -15,6 +15,7 @@ import hashlib
 import json
 import os
 import platform
+import re
 import sys
 import warnings
 from collections.abc import Iterator
@@ -35,7 +36,7 @@ from ratfit.errors import FileFormatError, InputError
 
 __all__ = [
     "FORMAT", "VERSION", "FitFileWarning", "SavedChannel", "SavedFit", "content_digest",
-    "fit_document", "load_fit", "save_fit", "trusting_edited",
+    "fit_document", "load_fit", "save_fit", "scope_text", "subset_of", "trusting_edited",
 ]
 
 FORMAT = "ratfit.fit"
@@ -326,9 +327,15 @@ def parse_fit(doc: Any, where: str = "fit", *, trust_edited: bool = False) -> Sa
     prov = doc.get("provenance", {})
     if not isinstance(prov, dict):
         raise FileFormatError(f"{where}: 'provenance' must be an object, got {_kind(prov)}")
+    _check_fields(prov, _PROVENANCE_FIELDS, f"{where}: provenance")
+    for i, c in enumerate(chans_doc):
+        _check_fields(c.get("diagnostics") or {}, _DIAGNOSTICS_FIELDS,
+                      f"{where}: channel {i} diagnostics")
     extra = {k: v for k, v in doc.items() if k not in _CORE_KEYS}
     if "brdf" in extra and not isinstance(extra["brdf"], dict):
         raise FileFormatError(f"{where}: 'brdf' must be an object, got {_kind(extra['brdf'])}")
+    if "brdf" in extra:
+        _check_fields(extra["brdf"], _BRDF_FIELDS, f"{where}: brdf")
     # Last: a corrupt file gets the message that names its defect, an intact but
     # edited one the digest message.
     integrity = _integrity(doc, where, version, trust_edited)
@@ -466,9 +473,13 @@ def _channel(c: Any, i: int, space: PolynomialSpace, where: str, *,
 
 
 def _check_function(rf: RationalFunction, here: str, pole_check: bool) -> None:
-    """The stored function is finite on its domain, has a denominator, and (unless it is
-    a BRDF, whose box domain holds directions below the horizon) no sign change of q."""
+    """The stored function is finite on its domain and has a denominator; in 1-D, q has
+    no real root in the closed domain (proved in exact arithmetic: a double root, where
+    q touches 0 without changing sign, included); in n-D (unless it is a BRDF, whose box
+    domain holds directions below the horizon) no sign change of q on a grid."""
     d = rf.space.dim
+    if d == 1:
+        _check_poles_1d(rf, here)
     per = 1001 if d == 1 else max(3, int(20_000 ** (1.0 / d)))
     axes = [np.linspace(-1.0, 1.0, per)] * d
     grid = np.stack([g.ravel() for g in np.meshgrid(*axes, indexing="ij")], axis=1)
@@ -480,9 +491,25 @@ def _check_function(rf: RationalFunction, here: str, pole_check: bool) -> None:
                               "coefficients or recurrence)")
     if not np.any(q):
         raise FileFormatError(f"{here}: the denominator is zero on the whole domain")
-    if pole_check and np.any(q > 0) and np.any(q < 0):
+    if d > 1 and pole_check and np.any(q > 0) and np.any(q < 0):
         raise FileFormatError(f"{here}: the denominator changes sign on the domain: the "
                               "function has a pole there")
+
+
+def _check_poles_1d(rf: RationalFunction, here: str) -> None:
+    from ratfit.io.exact_roots import denominator_has_root
+
+    try:
+        root = denominator_has_root(rf)
+    except ValueError as exc:
+        raise FileFormatError(f"{here}: {exc}: the denominator cannot be proved free of "
+                              "poles on the domain") from None
+    if root is None:
+        raise FileFormatError(f"{here}: the denominator's roots cluster at the domain so "
+                              "closely that no pole-freedom could be proved there")
+    if root:
+        raise FileFormatError(f"{here}: the denominator has a real root in the domain "
+                              "(found in exact arithmetic): the function has a pole there")
 
 
 def _is_int(v: Any) -> TypeGuard[int]:
@@ -506,6 +533,153 @@ def _short(v: Any) -> str:
 
 def _cut(text: str, n: int = 80) -> str:
     return text if len(text) <= n else text[: n - 3] + "..."
+
+
+# ---------------------------------------------------------------------------- field types
+# The type of every field ratfit reads back from a fit file, checked on load: a wrong
+# type is one error naming the field, never a value read as something else ("no" as
+# true) or a crash where it is used. Fields not listed (a newer ratfit's) are kept as
+# they are and never read.
+def _number(v: Any) -> bool:
+    return _is_num(v) and np.isfinite(float(v))
+
+
+def _opt(test: Any) -> Any:
+    return lambda v: v is None or test(v)
+
+
+def _list_of(test: Any) -> Any:
+    return lambda v: isinstance(v, list) and all(test(t) for t in v)
+
+
+def _is_str(v: Any) -> bool:
+    return isinstance(v, str)
+
+
+def _is_bool(v: Any) -> bool:
+    return isinstance(v, bool)
+
+
+def _index_key(k: Any) -> bool:
+    return isinstance(k, str) and k.isascii() and k.isdigit() and len(k) <= 3
+
+
+def _coordinate_map(v: Any) -> bool:
+    return isinstance(v, dict) and all(_index_key(k) and _number(t) for k, t in v.items())
+
+
+def _segments_spec(v: Any) -> bool:
+    if not isinstance(v, dict):
+        return False
+    for key, val in v.items():
+        if key in ("dt", "abs_width", "floor_rel", "narrowed_floor_from"):
+            if not (val is None or _number(val)):
+                return False
+        elif key in ("explicit", "default"):
+            if not _is_bool(val):
+                return False
+        elif key == "widened_from" and not (val is None or _list_of(_number)(val)):
+            return False
+    return True
+
+
+def _subset_spec(v: Any) -> bool:
+    return (isinstance(v, dict) and _is_int(v.get("points")) and _is_int(v.get("of"))
+            and 0 < v["points"] <= v["of"])
+
+
+_PROVENANCE_FIELDS: dict[str, tuple[Any, str]] = {
+    "input": (_is_str, "a string"),
+    "input_sha256": (_is_str, "a string"),
+    "n_points": (_is_int, "an integer"),
+    "solver": (_opt(_is_str), "a string or null"),
+    "segments": (_segments_spec, "an object of widths (numbers or null) and flags"),
+    "cdf": (lambda v: isinstance(v, dict), "an object"),
+    "batch": (lambda v: isinstance(v, dict), "an object"),
+    "command": (_list_of(_is_str), "a list of strings"),
+}
+_DIAGNOSTICS_FIELDS: dict[str, tuple[Any, str]] = {
+    "verified": (_is_bool, "true or false"),
+    "success": (_is_bool, "true or false"),
+    "time_limited": (_is_bool, "true or false"),
+    "n": (_is_int, "an integer"),
+    "m": (_is_int, "an integer"),
+    "total": (_is_int, "an integer"),
+    "message": (_is_str, "a string"),
+    **{k: (_opt(_is_num), "a number or null") for k in (
+        "max_violation", "max_violation_rel", "min_margin", "linf", "l2", "max_rel_error",
+        "delta", "sigma_min", "sigma_max", "cond", "coef_norm")},
+}
+_BRDF_FIELDS: dict[str, tuple[Any, str]] = {
+    "parametrization": (_is_str, "a string"),
+    "cosine_weighted": (_is_bool, "true or false"),
+    "positive_q": (_is_bool, "true or false"),
+    "polish": (_is_bool, "true or false"),
+    "fold_phi_d": (_is_bool, "true or false"),
+    "clamp": (_opt(_number), "a finite number or null"),
+    "param_out": (_opt(_is_str), "a string or null"),
+    "channel_names": (_list_of(_is_str), "a list of strings"),
+    "segments": (_segments_spec, "an object of widths (numbers or null) and flags"),
+    "verified_on": (_is_str, "a string"),
+    "subset": (_opt(_subset_spec), "an object {points, of} of integers, 0 < points <= of"),
+    "dropped_coords": (_coordinate_map, "an object mapping coordinate indices "
+                                        "(\"0\", \"1\", ...) to numbers"),
+    "validity": (_list_of(_opt(_is_str)), "a list of strings or nulls"),
+    "proof": (_list_of(_opt(lambda v: isinstance(v, dict) and _is_bool(v.get("proved")))),
+              "a list of nulls or objects with a true/false 'proved'"),
+}
+
+
+def _check_fields(block: Any, fields: dict[str, tuple[Any, str]], where: str) -> None:
+    if not isinstance(block, dict):
+        return  # the caller has said what the block itself must be
+    for key, (test, what) in fields.items():
+        if key in block and not test(block[key]):
+            raise FileFormatError(f"{where}: '{key}' must be {what}, got "
+                                  f"{_kind(block[key])} {_cut(repr(block[key]), 40)}")
+
+
+# ---------------------------------------------------------------------------- scope
+_SUBSET = re.compile(r"subset of (\d+) of (\d+) samples")
+
+
+def subset_of(saved: SavedFit) -> tuple[int, int] | None:
+    """(points, of) when the fit was verified on a random subset of its data only (a
+    ``brdf fit --max-points`` fit), else None: such a fit is never "verified on its
+    data", and what says so must say "verified on a subset of points of of samples"."""
+    meta = saved.extra.get("brdf") if isinstance(saved.extra, dict) else None
+    if not isinstance(meta, dict):
+        return None
+    sub = meta.get("subset")
+    if isinstance(sub, dict) and _subset_spec(sub):
+        return int(sub["points"]), int(sub["of"])
+    said = meta.get("verified_on")
+    if isinstance(said, str) and said != "all samples":
+        m = _SUBSET.search(said)
+        return (int(m.group(1)), int(m.group(2))) if m else (0, 0)
+    return None
+
+
+def scope_text(saved: SavedFit) -> str:
+    """What the verification of a sealed fit file covered, in one sentence."""
+    sub = subset_of(saved)
+    if sub is not None:
+        k, n = sub
+        if k and n:
+            return (f"Verified on a subset of {k} of {n} samples only (brdf fit --max-points): "
+                    f"not checked at the other {n - k} samples.")
+        return "Verified on a subset of its samples only (brdf fit --max-points)."
+    if saved.space.dim > 1:
+        meta = saved.extra.get("brdf") if isinstance(saved.extra, dict) else None
+        proofs = meta.get("proof") if isinstance(meta, dict) else None
+        if (isinstance(proofs, list) and len(proofs) == len(saved.channels)
+                and all(isinstance(p, dict) and p.get("proved") is True for p in proofs)):
+            return ("Verified at every sample of its data; q > 0 and p >= 0 proved where it "
+                    "is evaluated (Bernstein bounds, as the fit file records).")
+        return ("Verified at every sample of its data; that the denominator has no zero "
+                "between the samples was checked on a dense grid, not proved.")
+    return ("Verified on its data; no pole on the domain (proved in exact arithmetic when "
+            "this file was loaded).")
 
 
 # ---------------------------------------------------------------------------- re-verification

@@ -10,6 +10,8 @@ from __future__ import annotations
 
 from typing import Any
 
+__all__ = ["close", "plain", "subplots"]
+
 _FIGURE_KEYS = ("figsize", "dpi", "facecolor", "edgecolor", "layout", "constrained_layout",
                 "tight_layout")
 
@@ -22,6 +24,13 @@ def subplots(*args: Any, **kw: Any) -> tuple[Any, Any]:
     fig = Figure(**{k: kw.pop(k) for k in _FIGURE_KEYS if k in kw})
     FigureCanvasAgg(fig)
     return fig, fig.subplots(*args, **kw)
+
+
+def plain(text: Any) -> str:
+    """``text`` shown as written: every ``$`` escaped, so a channel or file name never
+    becomes mathtext markup (an even count of ``$`` would switch it on, and a malformed
+    formula such as ``$\\nope$`` would stop the picture with an error)."""
+    return str(text).replace("$", r"\$")
 
 
 def close(fig: Any) -> None:

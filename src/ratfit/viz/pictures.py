@@ -28,6 +28,7 @@ from numpy.typing import ArrayLike, NDArray
 from ratfit._atomic import atomic_path
 from ratfit.errors import InputError
 from ratfit.io.fitfile import SavedFit
+from ratfit.viz._figures import plain
 
 __all__ = [
     "DataBRDF",
@@ -282,13 +283,14 @@ def plot_slice(saved: SavedFit, path: str | Path, *, x: ArrayLike | None = None,
         axes[1].plot(xs, err, ".-", ms=3, lw=0.8, color="C3", label="r - y")
         axes[1].axhline(0.0, color="k", lw=0.5)
         axes[1].legend(fontsize=8)
-    names = _names(names, d)
+    names = [plain(n) for n in _names(names, d)]  # text from files: never mathtext
+    chan = plain(saved.channels[channel].name)
     where = ", ".join(f"{names[k]}={at_pt[k]:.4g}" for k in range(d) if k != dim)
-    axes[0].set_title(title or f"channel {saved.channels[channel].name}"
+    axes[0].set_title(plain(title) if title else f"channel {chan}"
                       + (f" along {names[dim]} at {where}" if where else "")
                       + ("\n(fit on the line; data and errors of the samples near it)"
                          if slab else ""), fontsize=10)
-    axes[0].set_ylabel(f"{saved.channels[channel].name}")
+    axes[0].set_ylabel(chan)
     axes[0].legend(fontsize=8)
     axes[1].set_xlabel(names[dim])
     axes[1].set_ylabel("signed error r - y")
@@ -314,9 +316,10 @@ def plot_error(saved: SavedFit, path: str | Path, x: ArrayLike, y: ArrayLike, *,
         ax.vlines(xs, la, ha, color="0.8", lw=2, label="allowed")
     ax.plot(xs, err, ".", ms=3, color="C3", label="r - y")
     ax.axhline(0.0, color="k", lw=0.5)
-    ax.set_xlabel(_names(names, d)[dim])
+    ax.set_xlabel(plain(_names(names, d)[dim]))
     ax.set_ylabel("signed error r - y")
-    ax.set_title(f"channel {saved.channels[channel].name}: signed error at {xa.shape[0]} points "
+    ax.set_title(f"channel {plain(saved.channels[channel].name)}: signed error at "
+                 f"{xa.shape[0]} points "
                  f"(max |r - y| = {np.max(np.abs(err)):.3g})")
     ax.legend(fontsize=8)
     fig.tight_layout()
@@ -347,7 +350,7 @@ def plot_brdf_slices(funcs: dict[str, BRDFFunction], path: str | Path, *,
             v = _eval_masked(fn, L, V)[:, min(channel, _nch(fn, L, V) - 1)]
             if log:
                 v = np.where(v > 0, v, np.nan)
-            a.plot(np.degrees(th), v, styles[i % 4], lw=1.2, label=name)
+            a.plot(np.degrees(th), v, styles[i % 4], lw=1.2, label=plain(name))
         a.set_title(f"theta_d = {tdd:g} deg", fontsize=9)
         a.set_xlabel("theta_h (deg)")
         if log:
@@ -394,8 +397,8 @@ def plot_polar(funcs: dict[str, BRDFFunction], path: str | Path, *,
             if np.any(np.isfinite(v)):
                 shown = True
                 top = max(top, float(np.nanmax(v)))
-            (h,) = a.plot(tv, v, styles[i % 4], lw=1.2, label=name)
-            handles.setdefault(name, h)
+            (h,) = a.plot(tv, v, styles[i % 4], lw=1.2, label=plain(name))
+            handles.setdefault(plain(name), h)
         if data is not None:
             v = _eval_masked(data, L, V)
             v = v[:, min(channel, v.shape[1] - 1)]
@@ -491,9 +494,9 @@ def plot_spheres(images: dict[str, Array], path: str | Path, *, exposure: float 
         disp = np.clip(np.nan_to_num(rgb, nan=0.0) * exposure, 0.0, 1.0) ** (1.0 / 2.2)
         disp[unknown] = (0.45, 0.45, 0.5)
         a.imshow(disp, interpolation="nearest")
-        a.set_title(name, fontsize=9)
+        a.set_title(plain(name), fontsize=9)
         a.axis("off")
     if title:
-        fig.suptitle(title, fontsize=10)
+        fig.suptitle(plain(title), fontsize=10)
     fig.tight_layout()
     return _save(fig, path)

@@ -10,6 +10,7 @@ from numpy.typing import NDArray
 from ratfit._atomic import atomic_path
 from ratfit.core.rational import RationalFunction
 from ratfit.core.segments import Segments
+from ratfit.viz._figures import plain
 
 __all__ = ["plot_errors", "plot_fits", "plot_function"]
 
@@ -54,7 +55,7 @@ def plot_fits(seg: Segments, fits: dict[str, RationalFunction | None], path: str
         ax.fill_between(x, seg.lo[:, 0], seg.hi[:, 0], color="0.8", label="segments")
         for name, rf in fits.items():
             if rf is not None:
-                ax.plot(xd, rf(xd), lw=1, label=name)
+                ax.plot(xd, rf(xd), lw=1, label=plain(name))
         ax.set_xlabel("x")
         ax.set_ylabel("y = f(x) and r(x)")
     span = seg.hi.max() - min(0.0, seg.lo.min())
@@ -85,7 +86,7 @@ def plot_errors(seg: Segments, fits: dict[str, RationalFunction | None], path: s
     ax.fill_between(x, seg.lo[:, 0] - y, seg.hi[:, 0] - y, color="0.85", label="allowed")
     for name, rf in fits.items():
         if rf is not None:
-            ax.plot(x, rf(seg.x) - y, lw=1, label=name)
+            ax.plot(x, rf(seg.x) - y, lw=1, label=plain(name))
     ax.set_yscale("symlog", linthresh=1e-2)
     ax.set_xlabel("x")
     ax.set_ylabel("r(x) - f(x)")

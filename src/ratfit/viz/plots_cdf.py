@@ -10,6 +10,7 @@ from numpy.typing import NDArray
 
 from ratfit.cdf.sampling import RationalCDF
 from ratfit.core.segments import Segments
+from ratfit.viz._figures import plain
 from ratfit.viz.plots import _figure, _save
 
 __all__ = ["plot_cdf_fit"]
@@ -68,12 +69,12 @@ def plot_cdf_fit(
     ax.set_ylabel("F(x) = P(X <= x)")
     ax.legend(fontsize=8)
     for axx in axes:
-        axx.set_xlabel(xlabel)
+        axx.set_xlabel(plain(xlabel))
         axx.set_xlim(a, b)
     if (a, b) != (model.a, model.b):
         title = (title + "; " if title else "") + (
             f"shown: x in [{a:.3g}, {b:.3g}] (outside: < 0.01 % of the probability)")
     if title:
-        fig.suptitle(title)
+        fig.suptitle(plain(title))
     fig.tight_layout()
     return _save(fig, Path(path))

@@ -17,10 +17,10 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from ratfit._atomic import atomic_open
+from ratfit._atomic import atomic_dir
 from ratfit.errors import InputError
 from ratfit.io.data import Dataset
-from ratfit.io.fitfile import SavedFit
+from ratfit.io.fitfile import SavedFit, scope_text, subset_of
 
 __all__ = ["LoadedFit", "compare_table", "load_data_for", "write_report"]
 
@@ -219,7 +219,6 @@ def write_report(fit_path: str | os.PathLike[str], data_path: str | os.PathLike[
                  size: int = 96) -> ReportResult:
     """index.html and its PNGs in ``outdir``; everything is read and checked first."""
     from ratfit._version import __version__
-    from ratfit.viz import pictures as pic
 
     fit = LoadedFit.load(fit_path)
     ds = load_data_for(fit, data_path) if data_path is not None else None
@@ -241,6 +240,22 @@ def write_report(fit_path: str | os.PathLike[str], data_path: str | os.PathLike[
             res.metrics = _plain_metrics(fit, ds)
     if seg is not None:
         res.recheck = recheck(fit, seg)
+    # every picture and the page are written into a folder beside ``outdir`` that
+    # moves into place only when all of them are written: a full disk midway leaves
+    # nothing (an error naming ``outdir``), never half a report
+    with atomic_dir(out) as work:
+        pics = _pictures(fit, ds, lo, hi, model_fits, res, work, size)
+        res.pictures = [out / p.name for _, p in pics]
+        page = _html(fit, data_path, res, pics, __version__)
+        (work / res.index.name).write_text(page)
+    return res
+
+
+def _pictures(fit: LoadedFit, ds: Dataset | None, lo: Any, hi: Any, model_fits: list,
+              res: ReportResult, out: Path, size: int) -> list[tuple[str, Path]]:
+    """The report's pictures written into ``out``: (caption, path) each."""
+    from ratfit.viz import pictures as pic
+
     pics: list[tuple[str, Path]] = []
     dx = None if ds is None else ds.x
     dy = None if ds is None else ds.y
@@ -284,11 +299,7 @@ def write_report(fit_path: str | os.PathLike[str], data_path: str | os.PathLike[
         if np.any(np.isfinite(alb.albedo)):  # else the page says why, with no empty plot
             pics.append(("Directional albedo of the rational fit",
                          _plot_albedo(alb, fit.channel_names, out / "albedo.png")))
-    res.pictures = [p for _, p in pics]
-    page = _html(fit, data_path, res, pics, __version__)
-    with atomic_open(res.index, "w") as fh:
-        fh.write(page)
-    return res
+    return pics
 
 
 def _plain_metrics(fit: LoadedFit, ds: Dataset) -> list[dict[str, Any]]:
@@ -323,12 +334,13 @@ def _num(v: Any) -> str:
 
 
 def _plot_albedo(alb, names: list[str], path: Path) -> Path:
+    from ratfit.viz._figures import plain
     from ratfit.viz.pictures import _plt, _save
 
     plt = _plt()
     fig, ax = plt.subplots(figsize=(6, 3.5))
     for j, n in enumerate(names):
-        ax.plot(np.degrees(alb.theta_i), alb.albedo[:, j], ".-", label=n)
+        ax.plot(np.degrees(alb.theta_i), alb.albedo[:, j], ".-", label=plain(n))
     ax.axhline(1.0, color="r", lw=0.8, ls="--", label="energy limit")
     ax.set_xlabel("incidence theta_i (deg)")
     ax.set_ylabel("directional albedo")
@@ -350,14 +362,19 @@ def _html(fit: LoadedFit, data_path, res: ReportResult, pics, version: str) -> s
     diag = ("<table><tr><th>channel</th><th>n</th><th>m</th><th>verified</th>"
             "<th>max violation</th><th>Linf</th><th>max rel. error</th></tr>")
     sealed = getattr(fit.saved, "integrity", "sealed") == "sealed"
+    sub = subset_of(fit.saved)
     for ch in fit.saved.channels:
         s = ch.summary
         ok = s.get("verified") is True and sealed
+        said = "NO" if not ok else "yes" if sub is None else (
+            f"on a subset of {sub[0]} of {sub[1]} samples" if sub[0] else "on a subset")
         diag += (f"<tr><td>{e(ch.name)}</td><td>{ch.rational.n}</td><td>{ch.rational.m}</td>"
-                 f"<td>{'yes' if ok else 'NO'}</td>"
+                 f"<td>{e(said)}</td>"
                  f"<td>{_num(s.get('max_violation'))}</td><td>{_num(s.get('linf'))}</td>"
                  f"<td>{_num(s.get('max_rel_error'))}</td></tr>")
     diag += "</table>"
+    if sealed:
+        diag += f"<p>{e(scope_text(fit.saved))}</p>"
     if not sealed:
         diag += ("<p class='bad'>The fit file was edited after ratfit wrote it (or predates "
                  "content digests): its verification record is not trusted.</p>")
