@@ -574,6 +574,10 @@ class BRDFFitter(RationalFitter):
     """
 
     options_type = BRDFOptions
+    # the chosen fit's full validity proof is running (the polish, the final check)
+    _final_proof: bool = False
+    # a channel searched again with the full proof on every candidate
+    _full_search: bool = False
 
     def __init__(self, *, parametrization: str = UNKNOWN_PARAMETRIZATION,
                  positive_q: bool = False, physical: bool = True, polish: bool = True,
@@ -587,7 +591,7 @@ class BRDFFitter(RationalFitter):
         self.used_coords = used_coords
 
     def fit(self, segments: Segments) -> BRDFFitter:
-        if not self.__dict__.get("_full_search", False):
+        if not self._full_search:
             self._shared_extra: list[Array] = []
         self._checks: dict[int, Any] = {}
         super().fit(segments)
@@ -607,7 +611,7 @@ class BRDFFitter(RationalFitter):
             self.results_ = [self._proved_or_searched(r, s, segments, j)
                              for j, (r, s) in enumerate(zip(self.results_, searched,
                                                             strict=True))]
-            if not self.__dict__.get("_full_search", False):
+            if not self._full_search:
                 self.results_ = [r if r.success or s.rational is None or not s.success
                                  else self._search_with_full_proof(r, segments, j)
                                  for j, (r, s) in enumerate(zip(self.results_, searched,
@@ -868,7 +872,7 @@ class BRDFFitter(RationalFitter):
             # While the search runs, a short proof that finds q <= 0 or p < 0 rejects the
             # candidate and one that runs out of pieces lets it on; the chosen fit gets
             # the full proof (:meth:`_proved`), which alone makes it a success.
-            final = self.__dict__.get("_final_proof", False)
+            final = self._final_proof
             proof = prove_validity(rf, self.parametrization, keep=keep,
                                    max_boxes=40_000 if final else SEARCH_PROOF_BOXES)
             self.__dict__.setdefault("_proofs", {})[id(rf)] = proof

@@ -211,7 +211,7 @@ def eval_forms(forms: tuple[ChannelForm, ...], x: ArrayLike) -> Array:
         xa = xa[:, None]
     cols = []
     for f in forms:
-        t = xa if f.scale is None else xa * f.scale + f.shift
+        t = xa if f.scale is None or f.shift is None else xa * f.scale + f.shift
         if f.form == "recurrence":
             with np.errstate(divide="ignore", invalid="ignore"):
                 cols.append(f.p_rec.evaluate(t, f.p_coef, window=True)
@@ -743,6 +743,7 @@ def export_source(
             arr = f"{prefix.upper()}_{tag.upper()}{j}"
             if f.form == "recurrence":
                 basis, coef = (f.p_rec, f.p_coef) if tag == "p" else (f.q_rec, f.q_coef)
+                assert coef is not None  # a recurrence form always carries its coefficients
                 lines += _recurrence_function(lg, f"{prefix}_{tag}{j}", arr, basis, coef)
                 lines += ["", ""] if py else [""]
                 continue
@@ -767,7 +768,7 @@ def export_source(
     dst = "res" if lang_key == "glsl" else "out"
     for j, f in enumerate(forms):
         if py:
-            if f.scale is None:
+            if f.scale is None or f.shift is None:
                 lines.append("    t = list(x)")
             else:
                 terms = ", ".join(f"{lg.lit(f.scale[i])} * x[{i}] + {lg.lit(f.shift[i])}"
@@ -776,7 +777,7 @@ def export_source(
             lines.append(f"    out.append({prefix}_p{j}(t) / {prefix}_q{j}(t))")
         else:
             for i in range(d):
-                if f.scale is None:
+                if f.scale is None or f.shift is None:
                     lines.append(f"    t[{i}] = x[{i}];")
                 else:
                     lines.append(f"    t[{i}] = {lg.lit(f.scale[i])} * x[{i}] + "

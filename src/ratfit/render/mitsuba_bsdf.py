@@ -157,7 +157,7 @@ def register() -> None:
         return
     mi, dr = _import_mitsuba()
 
-    class RatfitBSDF(mi.BSDF):
+    class RatfitBSDF(mi.BSDF):  # type: ignore[name-defined]  # mitsuba builds it at run time
         """A ratfit BRDF: ``model`` = id from :func:`make_bsdf`."""
 
         def __init__(self, props: Any) -> None:
