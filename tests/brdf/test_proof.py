@@ -84,15 +84,16 @@ def test_a_positive_fit_is_proved_with_its_margin() -> None:
     assert proof.to_dict()["proved"] is True
 
 
-def _fit_file(tmp_path: Path) -> Path:
-    rf = _rational(1e-3)
+def _fit_file(tmp_path: Path, q_dip: float = 1e-3, claim: bool = False) -> Path:
+    rf = _rational(q_dip)
     space = rf.space
     doc = {"format": "ratfit.fit", "version": 1, "space": space.to_dict(),
            "channels": [{"name": "R", "p": rf.p.tolist(), "q": rf.q.tolist(),
                          "diagnostics": {"verified": True}, "monomial": None}],
            "provenance": {},
            "brdf": {"parametrization": P, "cosine_weighted": False, "fold_phi_d": False,
-                    "channel_names": ["R"], "dropped_coords": {}}}
+                    "channel_names": ["R"], "dropped_coords": {},
+                    **({"proof": [{"proved": True}]} if claim else {})}}
     path = tmp_path / "fit.json"
     save_fit(path, json.loads(json.dumps(doc)))
     return path
@@ -186,3 +187,15 @@ def test_no_evaluated_point_lies_in_an_excluded_piece(name: str) -> None:
     c = np.stack([a.ravel() for a in np.meshgrid(*([g] * p.dim), indexing="ij")], axis=1)
     assert exclude(c, c).mean() > 0.05
 
+
+
+def test_a_stored_proof_is_proved_again_before_an_export_claims_it(tmp_path: Path) -> None:
+    """A digest can be recomputed by anyone: a file that says "proved" while its q dips
+    below zero near the mirror direction gets no proof claim in its exported code; the
+    same claim on a valid fit is kept."""
+    for dip, claimed in ((-1e-7, False), (1e-3, True)):
+        path = _fit_file(tmp_path, dip, claim=True)
+        out = tmp_path / "f.py"
+        export_fit(path, "python", out)
+        head = out.read_text().split("\n\n")[0]
+        assert ("q > 0 and p >= 0 proved" in head) is claimed, head

@@ -44,6 +44,7 @@ __all__ = [
     "check_validity",
     "configurations",
     "prove_validity",
+    "reprove_saved",
 ]
 
 Array = NDArray[np.float64]
@@ -428,3 +429,21 @@ def prove_validity(rf: RationalFunction, param: str, keep: ArrayLike | None = No
     pts = [space.from_window(s.points) for s in (qp, pp) if len(s.points)]
     bad = np.concatenate(pts) if pts else np.zeros((0, space.dim))
     return ValidityProof(qp.proved and pp.proved, qp, pp, region, bad)
+
+
+def reprove_saved(saved: object) -> bool | None:
+    """Prove a saved n-D BRDF fit valid again from its stored coefficients (every
+    channel), or None when it is no such fit. What a fit file says about its proof is
+    not taken on trust: anyone can recompute a content digest."""
+    extra = getattr(saved, "extra", None)
+    meta = extra.get("brdf") if isinstance(extra, dict) else None
+    channels = getattr(saved, "channels", ())
+    if not isinstance(meta, dict) or not channels or channels[0].rational.space.dim < 2:
+        return None
+    p = find_parametrization(str(meta.get("parametrization")))
+    if p is None:
+        return False
+    dropped = meta.get("dropped_coords") or {}
+    keep = None if not dropped else np.setdiff1d(np.arange(p.dim),
+                                                [int(k) for k in dropped])
+    return all(prove_validity(ch.rational, p.name, keep=keep).proved for ch in channels)

@@ -802,9 +802,10 @@ def _validity(saved: SavedFit) -> str:
     if integrity == "legacy":
         return ("NOT VERIFIED: an old fit file without a content digest (cannot be told from "
                 "an edited one); refit to get a verified one. Domain as above.")
+    from ratfit.brdf.validity import reprove_saved
     from ratfit.io.fitfile import scope_text
 
-    return "Valid on that domain only. " + scope_text(saved)
+    return "Valid on that domain only. " + scope_text(saved, reprove_saved(saved))
 
 
 def load_any_fit(path: str | os.PathLike[str]) -> tuple[SavedFit, Any]:

@@ -660,8 +660,13 @@ def subset_of(saved: SavedFit) -> tuple[int, int] | None:
     return None
 
 
-def scope_text(saved: SavedFit) -> str:
-    """What the verification of a sealed fit file covered, in one sentence."""
+def scope_text(saved: SavedFit, reproved: bool | None = None) -> str:
+    """What the verification of a sealed fit file covered, in one sentence.
+
+    ``reproved``: whether the caller proved an n-D BRDF fit valid again from its
+    stored coefficients (:func:`ratfit.brdf.validity.reprove_saved`); a digest can be
+    recomputed by anyone, so a stored "proved" is claimed only when that holds too.
+    """
     sub = subset_of(saved)
     if sub is not None:
         k, n = sub
@@ -672,7 +677,8 @@ def scope_text(saved: SavedFit) -> str:
     if saved.space.dim > 1:
         meta = saved.extra.get("brdf") if isinstance(saved.extra, dict) else None
         proofs = meta.get("proof") if isinstance(meta, dict) else None
-        if (isinstance(proofs, list) and len(proofs) == len(saved.channels)
+        if (reproved is not False and isinstance(proofs, list)
+                and len(proofs) == len(saved.channels)
                 and all(isinstance(p, dict) and p.get("proved") is True for p in proofs)):
             return ("Verified at every sample of its data; q > 0 and p >= 0 proved where it "
                     "is evaluated (Bernstein bounds, as the fit file records).")

@@ -18,6 +18,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ratfit._atomic import atomic_dir
+from ratfit.brdf.validity import reprove_saved
 from ratfit.errors import InputError
 from ratfit.io.data import Dataset
 from ratfit.io.fitfile import SavedFit, scope_text, subset_of
@@ -374,7 +375,7 @@ def _html(fit: LoadedFit, data_path, res: ReportResult, pics, version: str) -> s
                  f"<td>{_num(s.get('max_rel_error'))}</td></tr>")
     diag += "</table>"
     if sealed:
-        diag += f"<p>{e(scope_text(fit.saved))}</p>"
+        diag += f"<p>{e(scope_text(fit.saved, reprove_saved(fit.saved)))}</p>"
     if not sealed:
         diag += ("<p class='bad'>The fit file was edited after ratfit wrote it (or predates "
                  "content digests): its verification record is not trusted.</p>")
