@@ -33,6 +33,10 @@ _UNPROVED_POLISH = ("the polish of this fit is not proved valid: the unpolished 
 
 
 @pytest.mark.slow
+@pytest.mark.xfail(strict=True, run=False, reason=(
+    "open (issue 28): with the validity proof, acryl_blue's default fit has 103 "
+    "coefficients (channels up to 42) and needs the full-proof re-search; without a time "
+    "limit that search runs for tens of minutes, so this is not run until it is smaller"))
 def test_default_fit_of_acryl_blue_beats_lambert_ggx(shared_data: Path) -> None:
     path = shared_data / "cornell" / "acryl_blue.brdf"
     iso = "ISOTROPIC_TV_TL_DPHI"  # what `ratfit brdf fit` reads Cornell's CARTESIAN as
