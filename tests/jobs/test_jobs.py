@@ -145,6 +145,7 @@ def test_brdf_job_reads_once_and_resolves_each_frames_widths_once(
         shared_data: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     import ratfit.brdf.fitter as fitter
     import ratfit.brdf.io as bio
+    from ratfit.brdf.fitter import HALF_VECTOR
 
     reads: list[str] = []
     widths: list[int] = []
@@ -165,7 +166,7 @@ def test_brdf_job_reads_once_and_resolves_each_frames_widths_once(
     frames = {c["parametrization"] for c in report.meta["candidates"]}
     assert len(reads) == 1
     # the half-vector frame, then the angles (widths known before a fit: maybe skipped)
-    assert frames == {"RUSIN_TH_TD_PD", "ISOTROPIC_TV_TL_DPHI"}
+    assert frames == {HALF_VECTOR, "ISOTROPIC_TV_TL_DPHI"}
     assert len(widths) == 2
 
 
