@@ -1092,7 +1092,20 @@ class BRDFFit:
 
 def load_brdf_fit(path: str | os.PathLike[str]) -> BRDFFit:
     """Load a fit written by ``ratfit brdf fit`` (it must carry the "brdf" block)."""
-    saved = load_fit(path)
+    return brdf_fit_of_saved(load_fit(path), str(path))
+
+
+def brdf_fit_of(results: list[FitResult], brdf_meta: dict[str, Any]) -> BRDFFit:
+    """The verified results of a fit as the :class:`BRDFFit` its file would load as:
+    evaluated exactly as ``ratfit brdf eval`` evaluates the saved file."""
+    from ratfit.io.fitfile import parse_fit
+
+    doc = fit_document(results, extra={"brdf": brdf_meta})
+    return brdf_fit_of_saved(parse_fit(doc, "fit"), "fit")
+
+
+def brdf_fit_of_saved(saved: SavedFit, path: str) -> BRDFFit:
+    """A loaded fit file as a BRDF fit (it must carry the "brdf" block)."""
     meta = saved.extra.get("brdf")
     if not isinstance(meta, dict) or "parametrization" not in meta:
         raise FileFormatError(

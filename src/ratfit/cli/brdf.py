@@ -67,6 +67,11 @@ def _split_channels(values: tuple[str, ...]) -> list[str]:
               show_default=True, help="Spectral (Cornell) data: CIE 1931 -> linear sRGB, XYZ, "
                                       "or the bands as they are.")
 @click.option("--max-points", type=int, help="Fit a random subset of this many samples.")
+@click.option("--holdout", type=int, metavar="K",
+              help="Also fit K times, each without one of K folds of the samples (seeded: "
+                   "the same folds every run), and report the errors at the samples each "
+                   "fit never saw (RMSE, cos-weighted RMSE, RMS of log((f+1e-3)/(y+1e-3))); "
+                   "recorded in the fit file.")
 @fit_options(exclude=("domain",), defaults={"solver": BRDF_SOLVER})
 @click.option("--no-polish", "no_polish", is_flag=True,
               help="Keep the search's minimum-norm fit (default: replace it by the "
@@ -76,7 +81,7 @@ def _split_channels(values: tuple[str, ...]) -> list[str]:
 def brdf_fit(input_path: Path, output: Path | None, fmt: str | None, param: str | None,
              dt: float | None, abs_width: float | None, floor_rel: float | None, cosine: bool,
              clamp: float | None, positive_q: bool, channels: tuple[str, ...], color: str,
-             max_points: int | None, no_polish: bool, as_json: bool,
+             max_points: int | None, holdout: int | None, no_polish: bool, as_json: bool,
              **options: Any) -> None:
     """Fit each channel of a measured BRDF with a verified rational function."""
     from ratfit.jobs import BRDFFitRequest, fit_brdf_file
@@ -85,11 +90,13 @@ def brdf_fit(input_path: Path, output: Path | None, fmt: str | None, param: str 
     check_size_flags(params)
     if max_points is not None and max_points < 2:
         raise click.UsageError("--max-points must be >= 2")
+    if holdout is not None and holdout < 2:
+        raise click.UsageError("--holdout must be >= 2 folds")
     request = BRDFFitRequest.from_settings(input_path, {
         **params, "format": fmt, "parametrization": param, "dt": dt, "abs_width": abs_width,
         "floor_rel": floor_rel, "cosine": cosine, "clamp": clamp, "positive_q": positive_q,
         "channels": _split_channels(channels), "color": color, "max_points": max_points,
-        "polish": not no_polish, "output": output})
+        "holdout": holdout, "polish": not no_polish, "output": output})
     cb, stop = _progress(True)  # stderr: JSON on stdout stays clean
     try:
         report = fit_brdf_file(request.with_progress(cb))
@@ -125,6 +132,9 @@ def _print_brdf_report(report: Any) -> None:
             click.echo(f"{name}: physical check: {v}")
     for name, mm in (report.metrics or {}).items():
         click.echo(f"{name}: " + ", ".join(f"{k} {v:.4g}" for k, v in mm.items()))
+    if report.holdout is not None:
+        for line in report.holdout.lines():
+            click.echo(line)
 
 
 @brdf_group.command("eval")

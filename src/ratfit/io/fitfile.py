@@ -627,6 +627,9 @@ _BRDF_FIELDS: dict[str, tuple[Any, str]] = {
     "validity": (_list_of(_opt(_is_str)), "a list of strings or nulls"),
     "proof": (_list_of(_opt(lambda v: isinstance(v, dict) and _is_bool(v.get("proved")))),
               "a list of nulls or objects with a true/false 'proved'"),
+    "holdout": (lambda v: isinstance(v, dict) and _is_int(v.get("k"))
+                and isinstance(v.get("metrics"), dict),
+                "an object with an integer 'k' and per-channel 'metrics'"),
 }
 
 

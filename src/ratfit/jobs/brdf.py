@@ -30,7 +30,7 @@ __all__ = ["BRDFFitReport", "BRDFFitRequest", "fit_brdf_file"]
 
 #: The request's own keys in a flat settings mapping (the rest are BRDF fit options).
 REQUEST_KEYS = ("format", "parametrization", "dt", "abs_width", "floor_rel", "cosine", "clamp",
-                "channels", "color", "max_points", "output")
+                "channels", "color", "max_points", "holdout", "output")
 COLORS = ("rgb", "xyz", "spectral")
 # 6-D Cartesian pairs of an isotropic material (Cornell files): 3-D angles carry the
 # same information with no constant column and far fewer coefficients.
@@ -64,6 +64,10 @@ class BRDFFitRequest:
         How spectral (Cornell) data becomes channels.
     max_points : int, optional
         Fit a random subset of this many samples (verified on that subset only).
+    holdout : int, optional
+        K >= 2: also fit K times without one of K folds of the samples and record
+        the held-out errors (:func:`ratfit.brdf.holdout.cross_validate`) in the
+        report and the fit file.
     output : path, optional
         The fit file to write, only when every channel is verified.
     """
@@ -80,6 +84,7 @@ class BRDFFitRequest:
     channels: tuple[int | str, ...] = ()
     color: str = "rgb"
     max_points: int | None = None
+    holdout: int | None = None
     output: Path | None = None
 
     def __post_init__(self) -> None:
@@ -105,6 +110,7 @@ class BRDFFitRequest:
         fix(self, "channels", check_channels(self.channels))
         fix(self, "color", check_choice(self.color, "color", COLORS))
         fix(self, "max_points", check_count(self.max_points, "max_points", 2))
+        fix(self, "holdout", check_count(self.holdout, "holdout", 2))
 
     @classmethod
     def from_settings(cls, input: str | Path, settings: Mapping[str, Any], *,
@@ -140,6 +146,7 @@ class BRDFFitReport:
     frames_tried: int
     subset: dict[str, int] | None = None
     metrics: dict[str, dict[str, float]] | None = None
+    holdout: Any = None  # ratfit.brdf.holdout.HoldoutResult with --holdout
     messages: list[str] = field(default_factory=list)
     seconds: dict[str, float] = field(default_factory=dict)
     written: Path | None = None
@@ -184,6 +191,8 @@ class BRDFFitReport:
             doc["subset"] = dict(self.subset)
             doc["status"] = self.status()
         doc["metrics"] = self.metrics
+        if self.holdout is not None:
+            doc["holdout"] = self.holdout.to_dict()
         return doc
 
     def notes(self) -> list[str]:
@@ -251,6 +260,14 @@ def fit_brdf_file(request: BRDFFitRequest | str | Path) -> BRDFFitReport:
     ds = next(d for d in datasets if d.meta.get("param_in") == meta["parametrization"])
     report = BRDFFitReport(req, fitter.results_, seg, meta, digest, own, len(datasets),
                            subset=ds.meta.get("subset"))
+    if req.holdout is not None:
+        from ratfit.brdf.holdout import cross_validate
+
+        with clock.phase("holdout"):
+            report.holdout = cross_validate(datasets, req.holdout, dt=req.dt,
+                                            abs_width=req.abs_width, floor_rel=req.floor_rel,
+                                            cosine=req.cosine, clamp=req.clamp, **kw)
+        meta["holdout"] = report.holdout.to_dict()
     if report.success:
         with clock.phase("metrics"):
             report.metrics = _metrics(report)
