@@ -149,3 +149,40 @@ def test_a_default_fit_that_fails_names_the_options_that_may_help(tmp_path: Path
     assert "hint: no verified fit at the default segments (y +- 0.05 y)" in said
     assert "--dt 0.1" in said and "--time-limit" not in said.split("hint:")[1]
     assert "Traceback" not in r.output
+
+
+def test_channels_that_verified_are_kept_and_the_others_named(tmp_path: Path) -> None:
+    """One smooth channel and one of noise under a size bound: the smooth one verifies,
+    the report keeps it and names the other with the option that refits it alone."""
+    rng = np.random.default_rng(3)
+    g = np.radians(np.linspace(1.0, 80.0, 15))
+    th, td = np.meshgrid(g, g, indexing="ij")
+    smooth = 1.0 + 0.2 * np.cos(th.ravel())
+    noise = 1.0 + 0.5 * rng.uniform(size=th.size)
+    rows = "\n".join(f"{a:.17g} {b:.17g} {u:.17g} {v:.17g}" for a, b, u, v in
+                     zip(th.ravel(), td.ravel(), smooth, noise, strict=True))
+    data = tmp_path / "two.dat"
+    data.write_text(f"#DIM 2 2\n#PARAM_IN RUSIN_TH_TD\n#PARAM_OUT INV_STERADIAN\n{rows}\n")
+    r = run_cli("brdf", "fit", data, "--max-total", "6", "--time-limit", "0", "--json")
+    assert r.exit_code == 1
+    doc = json.loads(r.stdout)
+    assert [c["success"] for c in doc["channels"]] == [True, False]
+    said = " ".join(r.stderr.split())
+    assert "no verified fit for y1" in said and "--channel y1" in said
+
+
+def test_the_try_with_more_verified_channels_is_kept() -> None:
+    from types import SimpleNamespace
+
+    from ratfit.brdf.fitter import _more_verified
+
+    def attempt(*ok: bool) -> tuple:
+        fitter = SimpleNamespace(results_=[SimpleNamespace(success=v) for v in ok])
+        return (fitter, None, {})
+
+    first, second = attempt(True, False, True), attempt(False, False, True)
+    assert _more_verified(None, first) is first
+    assert _more_verified(first, second) is first
+    assert _more_verified(second, first) is first
+    tie = attempt(True, True, False)
+    assert _more_verified(first, tie) is first  # the earlier (preferred frame) on a tie

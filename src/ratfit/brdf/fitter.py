@@ -347,6 +347,7 @@ def fit_brdf_auto(datasets: list[Dataset], **kw: Any):
         raise InputError("fit_brdf_auto needs at least one dataset")
     tried: list[dict[str, Any]] = []
     last = best = None
+    most: tuple | None = None  # the try with the most verified channels, while none has all
     for ds in datasets:
         name = str(ds.meta.get("param_in", "UNKNOWN"))
         opts = dict(kw)
@@ -366,6 +367,7 @@ def fit_brdf_auto(datasets: list[Dataset], **kw: Any):
                        no_candidate=_no_candidate(fitter))
         tried.append(entry)
         last = (fitter, seg, meta)
+        most = _more_verified(most, last)
         total = entry["coefficients"]
         if entry["verified"] and (best is None or (band, total) < (best[3], best[4])):
             best = (fitter, seg, meta, band, total)
@@ -383,14 +385,26 @@ def fit_brdf_auto(datasets: list[Dataset], **kw: Any):
             if widened is None:
                 continue
             last = widened[:3]
+            most = _more_verified(most, last)
             if widened[0].success_ and (best is None or (widened[3], widened[4])
                                         < (best[3], best[4])):
                 best = widened
     if best is not None and _widths_defaulted(kw):
         best = _narrow_floor(best, datasets, tried, kw)
-    fitter, seg, meta = last if best is None else best[:3]
+    # no try verified every channel: keep the one that verified the most (a channel
+    # that verified in one frame is not discarded because another failed in a later one)
+    fitter, seg, meta = (most or last) if best is None else best[:3]
     meta["candidates"] = tried
     return fitter, seg, meta
+
+
+def _more_verified(kept: tuple | None, new: tuple) -> tuple:
+    """Of two tries (fitter, seg, meta), the one with more verified channels (the
+    earlier one on a tie: the preferred frame)."""
+    def count(t: tuple) -> int:
+        return sum(bool(r.success) for r in t[0].results_)
+
+    return new if kept is None or count(new) > count(kept) else kept
 
 
 def _widths_defaulted(kw: dict[str, Any]) -> bool:

@@ -211,15 +211,26 @@ class BRDFFitReport:
         return out
 
     def hint(self) -> str | None:
-        """What may give a verified fit, when none did at the default widths."""
-        widths = self.meta["segments"]
-        if self.success or not widths["default"]:
+        """What may give a verified fit: which channels have none (when others
+        verified), and wider segments when none did at the default widths."""
+        if self.success:
             return None
-        limited = any(r.time_limited for r in self.results)
-        return (f"hint: no verified fit at the default segments (y +- {widths['dt']:.3g} y); "
-                f"wider ones (--dt {min(2 * float(widths['dt']), 1.0):.2g}) "
-                + ("or a longer --time-limit (the search ran out of time) " if limited else "")
-                + "may give one")
+        widths = self.meta["segments"]
+        names = list(self.segments.names)
+        failed = [n for n, r in zip(names, self.results, strict=True) if not r.success]
+        parts = []
+        if len(failed) < len(names):
+            parts.append(f"channels {', '.join(n for n in names if n not in failed)} verified "
+                         f"in {self.parametrization}; no verified fit for {', '.join(failed)} "
+                         f"(refit {'it' if len(failed) == 1 else 'them'} alone with "
+                         + " ".join(f"--channel {n}" for n in failed) + ")")
+        if widths["default"]:
+            limited = any(r.time_limited for r in self.results)
+            parts.append(f"no verified fit at the default segments (y +- {widths['dt']:.3g} y); "
+                         f"wider ones (--dt {min(2 * float(widths['dt']), 1.0):.2g}) "
+                         + ("or a longer --time-limit (the search ran out of time) "
+                            if limited else "") + "may give one")
+        return "hint: " + "; ".join(parts) if parts else None
 
 
 def fit_brdf_file(request: BRDFFitRequest | str | Path) -> BRDFFitReport:
