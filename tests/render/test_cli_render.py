@@ -112,3 +112,34 @@ def test_render_png_with_fit_sampling_and_progress(rgb_fit: Path, tmp_path: Path
     assert res.exit_code == 0, res.output
     assert "pass 1/1, 4/4 spp" in res.output and "verified rational CDFs" in res.output
     assert out.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+def test_an_analytic_model_renders_like_a_fit(tmp_path: Path) -> None:
+    """`brdf model` fits the model `brdf compare` fits and saves it; `render` draws it in
+    the same scene as a fit: a model of the very material it was fitted to is close to
+    the data's render, and it recovers the material's parameters."""
+    pytest.importorskip("mitsuba", reason='Mitsuba 3 not installed: pip install ".[render]"')
+    from ratfit.brdf.analytic_models import load_model_fit
+
+    from .conftest import GGX
+
+    data = _data_file(tmp_path, "ggx.alta", ggx_rgb)
+    model = tmp_path / "model.json"
+    res = CliRunner().invoke(main, ["brdf", "model", str(data), "--model", GGX[0],
+                                    "-o", str(model), "--starts", "2"])
+    assert res.exit_code == 0, res.output
+    mf = load_model_fit(model)
+    assert mf.model.spec == GGX[0] and mf.n_channels == 3
+    alpha = mf.model.param_names.index("ggx1.alpha")
+    assert np.allclose(mf.params[:, alpha], GGX[1][alpha], rtol=0.02)
+    out = tmp_path / "model.exr"
+    res = CliRunner().invoke(main, ["render", str(model), "-o", str(out), "--size", "24",
+                                    "--spp", "16", "--sampling", "cosine", "--data", str(data),
+                                    "--json"])
+    assert res.exit_code == 0, res.output
+    info = json.loads(res.output[res.output.index("{"):])
+    assert info["difference"]["rel_rmse"] < 0.08, info
+    bad = tmp_path / "bad.json"
+    bad.write_text('{"format": "ratfit.model", "model": "lambert", "channels": []}')
+    res = CliRunner().invoke(main, ["render", str(bad), "-o", str(tmp_path / "x.exr")])
+    assert _one_error_line(res) and not (tmp_path / "x.exr").exists()

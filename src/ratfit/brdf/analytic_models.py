@@ -47,6 +47,7 @@ __all__ = [
     "channel_metrics",
     "check_dirs",
     "fit_model",
+    "is_model_file",
     "load_model_fit",
 ]
 
@@ -328,6 +329,19 @@ class ModelFit:
     def save(self, path: str | os.PathLike[str]) -> None:
         with atomic_open(path, "w") as fh:
             fh.write(json.dumps(self.to_dict(), indent=1, allow_nan=False) + "\n")
+
+
+def is_model_file(path: str | os.PathLike[str]) -> bool:
+    """Whether ``path`` is a JSON file that says it is a ratfit model file."""
+    p = Path(path)
+    if p.suffix.lower() != ".json" or not p.is_file():
+        return False
+    try:
+        with open(p, "rb") as fh:
+            head = fh.read(4000).decode("utf-8", errors="replace")
+    except OSError:
+        return False
+    return f'"{FORMAT}"' in head
 
 
 def load_model_fit(path: str | os.PathLike[str]) -> ModelFit:

@@ -227,3 +227,37 @@ def _read_table(path: Path, width: int) -> np.ndarray:
     if not np.all(np.isfinite(arr)):
         raise FileFormatError(f"{path}: non-finite values")
     return arr
+
+
+@brdf_group.command("model")
+@click.argument("data_path", metavar="DATA", type=click.Path(dir_okay=False, path_type=Path))
+@click.option("--model", "spec", default="lambert+ggx", show_default=True,
+              help="Analytic model, e.g. lambert+ggx, lambert+ggx*2, lambert+lafortune*2. "
+                   "Lobes: lambert, blinn, ward, beckmann, ggx, lafortune.")
+@click.option("-o", "--output", required=True, type=click.Path(dir_okay=False, path_type=Path),
+              help="Model file (JSON) for `ratfit render`, `brdf compare`.")
+@click.option("--starts", type=click.IntRange(1, 1000), default=8, show_default=True,
+              help="Random starts of the nonlinear least-squares fit per channel.")
+@click.option("--color", type=click.Choice(["rgb", "xyz", "spectral"]), default="rgb",
+              show_default=True, help="Spectral (Cornell) data: as for `brdf fit`.")
+def brdf_model(data_path: Path, spec: str, output: Path, starts: int, color: str) -> None:
+    """Fit an analytic model (the ones `brdf compare` fits) to a measured BRDF and save it,
+    so `ratfit render` draws it the way it draws a rational fit."""
+    from ratfit.brdf.analytic_models import Model
+    from ratfit.brdf.io import brdf_dataset
+    from ratfit.errors import InputError
+    from ratfit.viz.report import model_fit_for
+
+    model = Model(spec)
+    ds = brdf_dataset(data_path, None, color=color)
+    if ds.y is None:
+        raise InputError(f"{data_path}: no BRDF values to fit")
+    mf = model_fit_for(str(ds.meta.get("param_in")), ds, model.spec, starts=starts)
+    mf.info["data"] = str(data_path)
+    mf.save(output)
+    click.echo(f"{model.spec} fitted to {ds.n_points} samples of {data_path} "
+               f"({model.n_params} parameters per channel) -> {output}")
+    for name, p, m in zip(mf.channel_names, mf.params, mf.metrics, strict=True):
+        click.echo(f"{name}: " + ", ".join(f"{k} {v:.4g}" for k, v in m.items())
+                   + "; " + ", ".join(f"{a} {b:.4g}" for a, b in
+                                      zip(model.param_names, p, strict=True)))

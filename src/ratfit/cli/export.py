@@ -167,7 +167,7 @@ def report_cmd(fit_path: Path, data_path: Path | None, outdir: Path,
 def _compare(data_path: Path, fits: tuple[str, ...], models: tuple[str, ...], param: str | None,
              starts: int, as_json: bool) -> None:
 
-    from ratfit.brdf.analytic_models import Model
+    from ratfit.brdf.analytic_models import Model, is_model_file
     from ratfit.viz.report import (
         METRIC_COLUMNS,
         LoadedFit,
@@ -186,7 +186,7 @@ def _compare(data_path: Path, fits: tuple[str, ...], models: tuple[str, ...], pa
     first: LoadedFit | None = None
     model_files = []
     for f in fits:
-        if _is_model_file(Path(f)):
+        if is_model_file(f):
             model_files.append(Path(f))
             continue
         lf = LoadedFit.load(f)
@@ -221,16 +221,6 @@ def _compare(data_path: Path, fits: tuple[str, ...], models: tuple[str, ...], pa
     con.print(table)
     if dropped:
         con.print(f"(narrow terminal: {', '.join(dropped)} in --json)", highlight=False)
-
-
-def _is_model_file(p: Path) -> bool:
-    if p.suffix.lower() != ".json" or not p.is_file():
-        return False
-    try:
-        head = p.read_text(errors="replace")[:4000]
-    except OSError:
-        return False
-    return '"ratfit.model"' in head
 
 
 def _register_compare(group: click.Group) -> None:

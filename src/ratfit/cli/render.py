@@ -52,7 +52,11 @@ def render_cmd(fit_path: Path, output: Path, scene: str, spp: int, size: int, sa
                cosine_weight: float, incidence_nodes: int, conditional_nodes: int,
                data: Path | None, exposure: float | None, seed: int,
                variant: str, as_json: bool) -> None:
-    """Render a BRDF fit on a sphere with Mitsuba 3 (extra: pip install ".[render]")."""
+    """Render a BRDF fit on a sphere with Mitsuba 3 (extra: pip install ".[render]").
+
+    FIT.json is a `ratfit brdf fit` file or an analytic model fitted by `ratfit brdf
+    model`: both are drawn in the same scene, so fit, model and data compare image
+    to image."""
     from ratfit.jobs import RenderRequest, render_fit
     from ratfit.jobs.render import IMAGE_SUFFIXES
 

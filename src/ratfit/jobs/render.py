@@ -118,11 +118,11 @@ def render_fit(request: RenderRequest) -> RenderReport:
     from ratfit.render import mitsuba_bsdf as mb
 
     mi, _ = mb._import_mitsuba()  # missing extra: one error line, exit 2
-    from ratfit.render.material import DataMaterial, FitMaterial
+    from ratfit.render.material import DataMaterial, material_of
     from ratfit.render.scene import render_image, sphere_view
 
     req, clock = request, Clock()
-    mat = FitMaterial(req.fit)
+    mat = material_of(req.fit)  # a rational fit, or an analytic model fitted to data
     ref = DataMaterial(req.data) if req.data is not None else None
     if mat.negative_fraction > 0:
         req.say(f"note: the fit is negative on {100 * mat.negative_fraction:.1f}% of a "

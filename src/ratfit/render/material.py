@@ -20,7 +20,8 @@ from ratfit.brdf.albedo import hemisphere_quadrature
 from ratfit.brdf.fitter import BRDFFit, load_brdf_fit
 from ratfit.errors import InputError
 
-__all__ = ["AnalyticMaterial", "DataMaterial", "FitMaterial", "unit_rows"]
+__all__ = ["AnalyticMaterial", "DataMaterial", "FitMaterial", "ModelMaterial", "material_of",
+           "unit_rows"]
 
 Array = NDArray[np.float64]
 
@@ -164,3 +165,36 @@ class AnalyticMaterial:
     def __call__(self, L: ArrayLike, V: ArrayLike) -> Array:
         v = self.model(unit_rows(L), unit_rows(V), self.theta)
         return np.where(np.isfinite(v), np.maximum(v, 0.0), 0.0)[:, None] * self.rgb[None, :]
+
+
+class ModelMaterial:
+    """An analytic model fitted per channel (a ``ratfit.model`` file, written by
+    ``ratfit brdf model``), rendered exactly as a rational fit is: its values at
+    every pair above the horizon, nothing clamped (the lobes are non-negative)."""
+
+    def __init__(self, path: str | os.PathLike[str]) -> None:
+        from ratfit.brdf.analytic_models import load_model_fit
+
+        self.fit = load_model_fit(path)
+        self.name = Path(str(path)).stem
+        if self.fit.n_channels not in (1, 3):
+            raise InputError(f"the model has {self.fit.n_channels} channels; rendering needs 1 "
+                             "(grey) or 3 (RGB)")
+        self.isotropic = True
+        self.negative_fraction = _negative_fraction(self.raw)
+        self.outside_fraction = 0.0
+
+    def raw(self, L: ArrayLike, V: ArrayLike) -> Array:
+        with np.errstate(all="ignore"):
+            return _rgb(self.fit.eval_dirs(unit_rows(L), unit_rows(V)), "the model")
+
+    def __call__(self, L: ArrayLike, V: ArrayLike) -> Array:
+        v = self.raw(L, V)
+        return np.where(np.isfinite(v), np.maximum(v, 0.0), 0.0)
+
+
+def material_of(path: str | os.PathLike[str]) -> FitMaterial | ModelMaterial:
+    """The material a file holds: a rational BRDF fit, or an analytic model fit."""
+    from ratfit.brdf.analytic_models import is_model_file
+
+    return ModelMaterial(path) if is_model_file(path) else FitMaterial(path)
