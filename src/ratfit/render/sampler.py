@@ -97,10 +97,14 @@ class HalfVectorSampler:
     abs_width : CDF segment half-width (widened to 3x, 10x, 30x on a failed fit).
     max_total : largest n + m of one CDF fit.
 
-    Learned state: ``nodes_`` (one CDF2D per incidence), ``theta_i_nodes_``, ``fits_``
-    (number of verified CDF fits), ``coefficients_`` (their total n + m),
-    ``fallbacks_`` (CDFs replaced by the uniform one: no verified fit of the tabulated
-    density within ``max_total``; sampling stays exact, only less efficient there).
+    Attributes
+    ----------
+    nodes_ : one CDF2D per incidence node.
+    theta_i_nodes_ : the incidence angles of the nodes (radians).
+    fits_ : number of verified CDF fits.
+    coefficients_ : their total n + m.
+    fallbacks_ : CDFs replaced by the uniform one (no verified fit of the tabulated
+        density within ``max_total``; sampling stays exact, only less efficient there).
     """
 
     def __init__(self, *, cosine_weight: float = 0.2, n_incidence: int = 9,
