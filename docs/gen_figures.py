@@ -2,6 +2,7 @@
 
     python docs/gen_figures.py            # every picture (a few minutes: BRDF fit and render)
     python docs/gen_figures.py --quick    # all but the BRDF pictures (about a minute)
+    python docs/gen_figures.py --only brdf   # one group: addendum, fit_1d, cdf, batch, brdf
 
 Each picture is the output of a `ratfit` command on data from ../shared/data (or
 RATFIT_SHARED_DATA), downscaled to at most 900 pixels wide so the committed PNGs stay small.
@@ -99,22 +100,24 @@ def batch(tmp: Path) -> None:
 def brdf(tmp: Path) -> None:
     exr = DATA / "alta" / "data-example-01.exr"
     ratfit("brdf", "fit", str(exr), "-o", "exr.json", cwd=tmp)
-    ratfit("plot", "exr.json", "--data", str(exr), "--kind", "slice", "-o", "slice.png",
-           cwd=tmp)
+    ratfit("plot", "exr.json", "--data", str(exr), "-o", "slice.png", cwd=tmp)
     keep(tmp / "slice.png", "brdf_exr_slice.png")
-    ratfit("render", "exr.json", "--data", str(exr), "--size", "128", "--spp", "16",
-           "-o", "render.png", cwd=tmp)
+    ratfit("render", "exr.json", "--size", "128", "--spp", "16", "-o", "render.png", cwd=tmp)
     keep(tmp / "render.png", "brdf_exr_render.png")
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="skip the BRDF pictures")
+    parser.add_argument("--only", choices=["addendum", "fit_1d", "cdf", "batch", "brdf"],
+                        help="make one group of pictures")
     args = parser.parse_args()
     if not DATA.is_dir():
         sys.exit(f"no data folder at {DATA} (set RATFIT_SHARED_DATA)")
     IMG.mkdir(parents=True, exist_ok=True)
     steps = [addendum, fit_1d, cdf, batch] + ([] if args.quick else [brdf])
+    if args.only:
+        steps = [step for step in steps + [brdf] if step.__name__ == args.only][:1]
     with tempfile.TemporaryDirectory() as tmp:
         for step in steps:
             t0 = time.perf_counter()
