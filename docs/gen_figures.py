@@ -31,7 +31,8 @@ def ratfit(*args: str, cwd: Path, ok: tuple[int, ...] = (0,)) -> None:
     cmd = [sys.executable, "-m", "ratfit", *args]
     res = subprocess.run(cmd, cwd=cwd, capture_output=True, text=True)
     if res.returncode not in ok:
-        sys.exit(f"{' '.join(args)}: exit {res.returncode}\n{res.stdout[-2000:]}{res.stderr[-2000:]}")
+        sys.exit(f"{' '.join(args)}: exit {res.returncode}\n"
+                 f"{res.stdout[-2000:]}{res.stderr[-2000:]}")
 
 
 def keep(src: Path, name: str) -> None:
