@@ -152,14 +152,12 @@ class MonotoneSystem:
     designs B, D (derivatives in the window variable t; dt/dx > 0 is a constant
     that changes no sign):
 
-    ====== ======================= ============================
-    block  row                      meaning
-    ====== ======================= ============================
-    0      [ B, -L B ]              p - L q >= .
-    1      [-B,  U B ]              U q - p >= .
-    2      [ D, -L D ]              p' - L q' >= .
-    3      [ D, -U D ]              p' - U q' >= .
-    ====== ======================= ============================
+    | block | row          | meaning         |
+    |-------|--------------|-----------------|
+    | 0     | `[ B, -L B ]` | p - L q >= .    |
+    | 1     | `[-B,  U B ]` | U q - p >= .    |
+    | 2     | `[ D, -L D ]` | p' - L q' >= .  |
+    | 3     | `[ D, -U D ]` | p' - U q' >= .  |
 
     Row r is block r // P, point r % P. ``form="max"`` differs only in the
     starting active set (one derivative row per point, see the module notes).

@@ -1,4 +1,4 @@
-"""MkDocs hook: the command-line reference's option lists, from the commands themselves.
+"""MkDocs hooks: the command-line reference from the commands themselves; Sphinx roles.
 
 A page line `<!-- ratfit-cli-help -->` becomes the `--help` text of every `ratfit`
 command and subcommand, so the reference always matches the installed code.
@@ -6,6 +6,7 @@ command and subcommand, so the reference always matches the installed code.
 
 from __future__ import annotations
 
+import re
 from typing import Any
 
 MARKER = "<!-- ratfit-cli-help -->"
@@ -42,3 +43,17 @@ def on_page_markdown(markdown: str, **kwargs: Any) -> str:
     if MARKER not in markdown:
         return markdown
     return markdown.replace(MARKER, _help_sections())
+
+
+# Docstrings cite names with Sphinx roles (:class:`~ratfit.x.Y`); mkdocstrings renders
+# Markdown, where the role stays as text. Drop the role, and with "~" keep the last name.
+_ROLE = re.compile(r":(?:class|func|meth|data|attr|mod|obj|exc):<code>(~?)([\w.]+)</code>")
+
+
+def _role(match: re.Match[str]) -> str:
+    name = match.group(2).rsplit(".", 1)[-1] if match.group(1) else match.group(2)
+    return f"<code>{name}</code>"
+
+
+def on_page_content(html: str, **kwargs: Any) -> str:
+    return _ROLE.sub(_role, html)
