@@ -89,3 +89,28 @@ def test_cli_tolerance(shared_data: Path, tmp_path: Path) -> None:
     bad = CliRunner().invoke(main, ["tolerance", str(zero), "--n", "1", "--m", "1"])
     assert bad.exit_code == 2 and "y is 0 at point 0" in bad.output
     assert "Traceback" not in bad.output
+
+
+def test_cli_tolerance_kirby2_10_10_lower_bound_is_proved(shared_data: Path) -> None:
+    """Issue 27: (10, 10) on Kirby2 printed its lower bound "NOT certified". Just below
+    the optimum HiGHS's Farkas vector misses a row, so the proof is found lower down:
+    the output names the width that is proved, and that proof checks again here."""
+    path = shared_data / "nist" / "Kirby2.dat"
+    r = CliRunner().invoke(main, ["tolerance", str(path), "--n", "10", "--m", "10", "--json"])
+    assert r.exit_code == 0, r.output
+    doc = json.loads(r.stdout)
+    assert doc["verified"] and doc["n"] == 10 and doc["m"] == 10
+    assert doc["lower"] < doc["width"] <= doc["lower"] * (1 + 1e-3)
+    proved = doc["proved_lower"]
+    assert proved is not None and 0.5 * doc["width"] < proved <= doc["lower"]
+    assert doc["lower_proof"]["checked"] and doc["lower_proof"]["exact"]
+    assert "certified infeasible" in doc["lower_statement"]
+    data = read_data(path)
+    x, y = data.x[:, 0], data.y[:, 0]
+    fit = RationalFitter(n=10, m=10).fit(Segments.from_relative(x, y, doc["width"]))
+    again = certify(fit.result_.rational.space, Segments.from_relative(x, y, proved), 0, 10, 10)
+    assert again.checked and again.exact
+    text = CliRunner().invoke(main, ["tolerance", str(path), "--n", "10", "--m", "10"])
+    assert text.exit_code == 0, text.output
+    assert "NOT certified" not in text.output
+    assert f"{proved:.6g} is certified infeasible" in text.output

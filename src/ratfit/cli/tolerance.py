@@ -40,8 +40,10 @@ def tolerance_cmd(input_path: Path, width_kind: str, absolute_flag: bool, rtol: 
 
     Intervals in the file are ignored: segments are built from y with the
     width being searched, by bisection with feasibility QPs. The result is a
-    verified fit at WIDTH and, just below it, a checked certificate that no
-    rational of this size fits (a minimax-like error bound).
+    verified fit at WIDTH and a width below it with a checked (exact) certificate
+    that no rational of this size fits: the bisection's lower end when its
+    certificate checks, else the largest smaller width where one does (the
+    output names both).
     """
     from ratfit.errors import InputError
     from ratfit.fitting.tolerance import best_width
@@ -106,8 +108,7 @@ def _print_widths(names: list[str], outs: list[Any], absolute: bool, n: int, m: 
             click.echo(f"{name}: no verified fit of size n={n}, m={m} at any width tried")
             continue
         v = o.fit.verification
-        proof = ("certified infeasible" if o.lower_certified else "NOT certified")
         click.echo(
             f"{name}: best {kind} width {o.width:.6g} for n={n}, m={m} (verified; max rel. "
-            f"error {_fmt(v.max_rel_error if v else None)}); {o.lower:.6g} is {proof}"
+            f"error {_fmt(v.max_rel_error if v else None)}); {o.lower_statement}"
         )

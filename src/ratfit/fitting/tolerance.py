@@ -8,12 +8,19 @@ feasible width is found by bisection with one feasibility QP per step. At the
 end the result holds
 
 * ``width``: the smallest width tried that has a *verified* fit (returned), and
-* ``lower``: the largest width tried without one, with a Farkas certificate
-  (:mod:`ratfit.certificate`) saying whether no rational of size (n, m) fits
-  there at all (``lower_certified``) or the solver merely failed.
+* ``lower``: the largest width tried without one (the solver found none), and
+* ``proved_lower``: the largest width with a checked Farkas certificate
+  (:mod:`ratfit.fitting.certificate`, exact rational arithmetic) that no rational
+  of size (n, m) fits there at all.
 
-When the lower end is certified, the true optimum lies in (lower, width] and
-``width`` is a minimax-like relative (or absolute) error bound for size (n, m).
+The certificate is tried at ``lower`` first. Just below the optimum the
+infeasibility is so slight that HiGHS's Farkas vector misses a row of its
+support (Kirby2 at (10, 10): residual 3e-7 at 0.99 of the optimum, no exact
+check possible), so the certificate is then tried at smaller widths, down to a
+quarter of ``lower``, and the bracket between a failed and a checked width is
+narrowed by a few bisection steps. So the true optimum lies in
+(proved_lower, width]; ``lower_certified`` says whether ``proved_lower`` is
+``lower`` itself.
 """
 
 from __future__ import annotations
@@ -46,9 +53,11 @@ class ToleranceResult:
     absolute: bool
     fit: FitResult | None  # the verified fit at ``width``
     segments: Segments | None  # the segments at ``width``
-    certificate: Certificate | None  # Farkas certificate at ``lower``
+    certificate: Certificate | None  # checked at ``proved_lower``, else the one at ``lower``
     steps: tuple[dict[str, Any], ...] = field(default=())
     seconds: float = 0.0
+    # The largest width with a checked (exact) infeasibility certificate; nan when none.
+    proved_lower: float = math.nan
 
     @property
     def success(self) -> bool:
@@ -59,12 +68,28 @@ class ToleranceResult:
         """One line: the width found and how the width below it is known to fail."""
         if not self.success:
             return "no verified fit of this size at any width tried"
-        proof = "certified infeasible" if self.lower_certified else "not certified"
-        return f"verified fit at width {self.width:.6g}; {self.lower:.6g} is {proof}"
+        return f"verified fit at width {self.width:.6g}; {self.lower_statement}"
+
+    @property
+    def lower_statement(self) -> str:
+        """What is known below ``width``: which width is proved infeasible."""
+        if self.lower_certified:
+            return f"{self.lower:.6g} is certified infeasible (exact Farkas certificate)"
+        if self.proved:
+            return (f"no fit found at {self.lower:.6g} (not proved); {self.proved_lower:.6g} "
+                    "is certified infeasible (exact Farkas certificate)")
+        return f"no fit found at {self.lower:.6g}; no width below is proved infeasible"
+
+    @property
+    def proved(self) -> bool:
+        """Some width below ``width`` carries a checked infeasibility certificate."""
+        return (self.certificate is not None and self.certificate.checked
+                and math.isfinite(self.proved_lower))
 
     @property
     def lower_certified(self) -> bool:
-        return self.certificate is not None and self.certificate.checked
+        """``lower`` itself (the bisection's end) is certified infeasible."""
+        return self.proved and self.proved_lower == self.lower
 
     @property
     def gap(self) -> float:
@@ -78,6 +103,10 @@ class ToleranceResult:
             "lower": _num(self.lower),
             "gap": _num(self.gap),
             "lower_certified": self.lower_certified,
+            "proved_lower": _num(self.proved_lower),
+            "proved_gap": _num(self.width / self.proved_lower - 1.0
+                               if self.proved and self.proved_lower > 0 else math.inf),
+            "lower_statement": self.lower_statement,
             "lower_proof": self.certificate.summary() if self.certificate else None,
             "width_steps": list(self.steps),
         }
@@ -195,14 +224,51 @@ def best_width(
         else:
             lo = w
     cert = None
+    proved = math.nan
     fit, seg = fits[hi]
     if certify_lower and lo > 0:
-        seg_lo = segments(lo)
         assert fit.rational is not None  # a verified fit
-        cert = certify(fit.rational.space, seg_lo, 0, int(n), int(m),
-                       formulation="arnoldi" if _arnoldi_ok(fit) else "basis")
+        space = fit.rational.space
+        form = "arnoldi" if _arnoldi_ok(fit) else "basis"
+
+        def proof(w: float) -> Certificate:
+            return certify(space, segments(w), 0, int(n), int(m), formulation=form)
+
+        cert, proved = _proved_below(lo, proof)
     return ToleranceResult(hi, lo, absolute, fit, seg, cert, tuple(steps),
-                           time.perf_counter() - t0)
+                           time.perf_counter() - t0, proved_lower=proved)
+
+
+# Fractions of the bisection's lower end where a certificate is tried in turn, and the
+# bisection steps between the last failed and the first checked one.
+_PROOF_FRACTIONS = (1.0, 0.99, 0.95, 0.9, 0.8, 0.65, 0.5, 0.25)
+_PROOF_REFINE = 3
+
+
+def _proved_below(lower: float, proof: Any) -> tuple[Certificate, float]:
+    """The largest width <= ``lower`` (from :data:`_PROOF_FRACTIONS`, then refined)
+    whose certificate checks, with it; (the certificate at ``lower``, nan) when none."""
+    first = proof(lower)
+    if first.checked:
+        return first, lower
+    failed = lower
+    for f in _PROOF_FRACTIONS[1:]:
+        w = lower * f
+        cert = proof(w)
+        if cert.checked:
+            break
+        failed = w
+    else:
+        return first, math.nan
+    good, good_cert = w, cert
+    for _ in range(_PROOF_REFINE):
+        mid = 0.5 * (good + failed)
+        c = proof(mid)
+        if c.checked:
+            good, good_cert = mid, c
+        else:
+            failed = mid
+    return good_cert, good
 
 
 def _arnoldi_ok(fit: FitResult) -> bool:
