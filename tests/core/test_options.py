@@ -12,7 +12,7 @@ from ratfit import RationalFitter, Segments
 from ratfit.batch.runner import DEFAULTS, FIT_PARAMS, load_manifest, settings_id
 from ratfit.cli import main
 from ratfit.core.bases import FAMILIES
-from ratfit.core.options import FIT_OPTIONS, check_fit_params
+from ratfit.core.options import FIT_OPTIONS, SEGMENT_OPTIONS, check_fit_params
 from ratfit.errors import InputError
 
 
@@ -28,12 +28,14 @@ def _flags(cmd: click.Command) -> dict[str, click.Parameter]:
 
 
 def test_spec_is_the_fitters_signature() -> None:
+    # the segment widths (fit(X, y)) and then the search's options
+    spec = {**SEGMENT_OPTIONS, **FIT_OPTIONS}
     sig = inspect.signature(RationalFitter.__init__).parameters
     params = [k for k in sig if k != "self"]
-    assert params == list(FIT_OPTIONS)
-    for k, opt in FIT_OPTIONS.items():
+    assert params == list(spec)
+    for k, opt in spec.items():
         assert sig[k].default == opt.default, k
-    assert RationalFitter().get_params() == {k: o.default for k, o in FIT_OPTIONS.items()}
+    assert RationalFitter().get_params() == {k: o.default for k, o in spec.items()}
 
 
 @pytest.mark.parametrize("path", ["fit", "cdf", "brdf fit", "tolerance"])
@@ -162,8 +164,10 @@ def test_each_estimator_spec_extends_the_base_spec() -> None:
         assert list(spec)[: len(FIT_OPTIONS)] == list(FIT_OPTIONS)
         assert issubclass(cls, FitOptions) and cls.SPEC is spec
         assert est.options_type is cls
-        # every constructor parameter is a checked option, with the same default
-        assert est().get_params() == {k: o.default for k, o in spec.items()}
+        # every constructor parameter is a checked option (or a segment width), with
+        # the same default
+        assert est().get_params() == {k: o.default for k, o in {**SEGMENT_OPTIONS,
+                                                                  **spec}.items()}
     assert BRDF_OPTIONS["solver"].default == BRDF_SOLVER == BRDFOptions().solver
     assert MonotoneOptions().formulation == "basis"
     # names are normalised once, at the seam

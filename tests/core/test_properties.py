@@ -124,8 +124,8 @@ def test_monomial_conversion_known_example():
     space = PolynomialSpace("legendre", [[0.0, 2.0]])
     rf = RationalFunction(space, [0, 0, 1], [1])
     mf = to_monomial(rf, np.linspace(0, 2, 11))
-    assert np.allclose(mf.P, [1.0, -3.0, 1.5], atol=1e-14)
-    assert np.allclose(mf.Q, [1.0], atol=1e-14)
+    assert np.allclose(mf.p, [1.0, -3.0, 1.5], atol=1e-14)
+    assert np.allclose(mf.q, [1.0], atol=1e-14)
 
 
 @settings(max_examples=40, **SETTINGS)
@@ -154,15 +154,15 @@ def test_monomial_form_agrees_with_orthogonal_form(dim, family, index_set, seed)
     # Horner's forward error bound: eps * sum |P_a| |x|^a (the monomial form's own
     # conditioning on a domain away from 0), carried through the division.
     eps = np.finfo(float).eps
-    dp = eps * horner(np.abs(xe), np.abs(mf.P))
-    dq = eps * horner(np.abs(xe), np.abs(mf.Q))
+    dp = eps * horner(np.abs(xe), np.abs(mf.p))
+    dq = eps * horner(np.abs(xe), np.abs(mf.q))
     qx = np.abs(rf.denominator(x))
     bound = np.max((dp + np.abs(ref) * dq) / qx) / np.max(np.abs(ref))
     assert mf.max_rel_diff <= 100 * bound + 1e-14
-    assert np.allclose(horner(xe, mf.P) / horner(xe, mf.Q), ref, rtol=0,
+    assert np.allclose(horner(xe, mf.p) / horner(xe, mf.q), ref, rtol=0,
                        atol=(100 * bound + 1e-14) * np.max(np.abs(ref)))
     # same count of coefficients: no degree grows
-    assert np.count_nonzero(np.abs(mf.P) > 0) <= space.tensor_coef(rf.p).size
+    assert np.count_nonzero(np.abs(mf.p) > 0) <= space.tensor_coef(rf.p).size
 
 
 def test_fft_route_matches_numpy_route_in_1d():
@@ -175,7 +175,7 @@ def test_fft_route_matches_numpy_route_in_1d():
         assert err < 1e-12
     # compare with numpy's own conversion of the numerator
     ref = np.polynomial.Chebyshev(rf.p, domain=[-1, 4]).convert(kind=Polynomial, domain=[-1, 1])
-    assert np.allclose(mf.P, ref.coef, rtol=1e-9, atol=1e-12)
+    assert np.allclose(mf.p, ref.coef, rtol=1e-9, atol=1e-12)
 
 
 def test_lossy_conversion_warns():

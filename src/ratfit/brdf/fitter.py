@@ -20,7 +20,7 @@ from __future__ import annotations
 import os
 import time
 from dataclasses import dataclass, replace
-from typing import Any
+from typing import Any, Self
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -604,11 +604,12 @@ class BRDFFitter(RationalFitter):
         self.polish = polish
         self.used_coords = used_coords
 
-    def fit(self, segments: Segments) -> BRDFFitter:
+    def _fit_segments(self, segments: Segments) -> Self:
+        """Search every channel, then polish and prove (``fit`` ends here)."""
         if not self._full_search:
             self._shared_extra: list[Array] = []
         self._checks: dict[int, Any] = {}
-        super().fit(segments)
+        super()._fit_segments(segments)
         searched = list(self.results_)
         prove = self.physical and find_parametrization(self.parametrization) is not None
         if self.polish:
@@ -647,7 +648,7 @@ class BRDFFitter(RationalFitter):
         again._full_search = True
         again._final_proof = True
         again._shared_extra = list(self._extra)
-        again.fit(seg.channel(j))
+        again._fit_segments(seg.channel(j))
         out = again.results_[0]
         if not out.success:
             return res

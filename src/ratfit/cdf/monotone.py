@@ -35,7 +35,7 @@ from __future__ import annotations
 import math
 import threading
 from dataclasses import dataclass
-from typing import Any, ClassVar
+from typing import Any, ClassVar, Self
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -487,15 +487,18 @@ class MonotoneFitter(RationalFitter):
 
     options_type = MonotoneOptions
 
-    def fit(self, segments: Segments) -> MonotoneFitter:
-        """Fit a monotone CDF to every channel of ``segments``; returns self."""
+    def fit(self, X: ArrayLike | Segments, y: ArrayLike | None = None) -> Self:
+        """Fit a monotone CDF to every channel (``fit(segments)`` or ``fit(x, y)``
+        with ``dt``/``abs_width``); returns self."""
         self.options()  # the options' messages come before the data's
-        if isinstance(segments, Segments) and segments.dim != 1:
+        return super().fit(X, y)
+
+    def _fit_segments(self, segments: Segments) -> Self:
+        if segments.dim != 1:
             raise InputError(
                 f"monotone CDF fitting is 1-D, the data has {segments.dim} input dimensions"
             )
-        super().fit(segments)
-        return self
+        return super()._fit_segments(segments)
 
     def search_parts(self, space: PolynomialSpace, seg: Segments) -> SearchParts:
         o = self.options_

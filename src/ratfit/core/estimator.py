@@ -1,5 +1,11 @@
 """scikit-learn conventions for ratfit's estimators, without depending on scikit-learn.
 
+scikit-learn (BSD-3, GPL-compatible) stays an optional package: the protocol
+it reads (``get_params``/``set_params``, ``predict``/``score``, its tags) is
+written here, so ``import ratfit`` needs neither it nor its dependencies, and
+``clone``, ``cross_val_score``, grid searches and pipelines work when it is
+installed. Its tags are built from scikit-learn itself, only when it asks.
+
 Parameters are the keyword arguments of ``__init__`` (read from the signature of
 every class in the MRO that forwards ``**params`` upwards), stored unchanged as
 attributes; ``fit`` validates them and never writes them back. That is what
@@ -12,10 +18,11 @@ import inspect
 from typing import Any
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from ratfit.errors import InputError
 
-__all__ = ["Estimator"]
+__all__ = ["Estimator", "Regressor", "r2_score"]
 
 
 class Estimator:
@@ -114,6 +121,30 @@ class Estimator:
         return f"{type(self).__name__}({', '.join(shown)})"
 
 
+class Regressor(Estimator):
+    """Mixin: a regressor to scikit-learn (its tags; ``score`` is R^2 of ``predict``)."""
+
+    _estimator_type = "regressor"  # how scikit-learn < 1.6 recognises a regressor
+
+    def predict(self, X: ArrayLike) -> Any:  # pragma: no cover - every subclass has one
+        raise NotImplementedError
+
+    def score(self, X: ArrayLike, y: ArrayLike) -> float:
+        """R^2 of ``predict(X)`` against ``y`` (:func:`r2_score`; 1.0 is exact): what
+        scikit-learn regressors return, so its model selection ranks ratfit fits like
+        any other. It measures closeness to y, not whether the segments are met (a
+        fit's ``verification`` says that)."""
+        return r2_score(y, self.predict(X))
+
+    def __sklearn_tags__(self) -> Any:
+        """scikit-learn >= 1.6 asks this (only it calls it, so it is importable)."""
+        from sklearn.utils import InputTags, RegressorTags, Tags, TargetTags
+
+        return Tags(estimator_type="regressor",
+                    target_tags=TargetTags(required=True, multi_output=True),
+                    regressor_tags=RegressorTags(), input_tags=InputTags(one_d_array=True))
+
+
 def _same(a: Any, b: Any) -> bool:
     """Whether a parameter still holds its default (arrays and lists compared by value)."""
     if a is b:
@@ -125,3 +156,25 @@ def _same(a: Any, b: Any) -> bool:
         return bool(np.array_equal(np.asarray(a, dtype=object), np.asarray(b, dtype=object)))
     except Exception:  # noqa: BLE001 -- an uncomparable value is simply "not the default"
         return False
+
+
+def r2_score(y_true: ArrayLike, y_pred: ArrayLike) -> float:
+    """Coefficient of determination R^2 = 1 - SS_res / SS_tot, averaged over outputs.
+
+    scikit-learn's ``r2_score`` with its defaults (uniform average; an output
+    whose true values are constant scores 1.0 when predicted exactly, else 0.0),
+    written here so that ratfit's ``score`` needs no scikit-learn. 1.0 is a
+    perfect prediction; a constant prediction of the mean scores 0.0.
+    """
+    yt = np.asarray(y_true, dtype=float)
+    yp = np.asarray(y_pred, dtype=float)
+    yt = yt.reshape(yt.shape[0], -1)
+    yp = yp.reshape(yp.shape[0], -1)
+    if yt.shape != yp.shape:
+        raise InputError(f"y has shape {yt.shape}, the prediction {yp.shape}")
+    res = ((yt - yp) ** 2).sum(axis=0)
+    tot = ((yt - yt.mean(axis=0)) ** 2).sum(axis=0)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        per = np.where(tot > 0, 1.0 - res / np.where(tot > 0, tot, 1.0),
+                       np.where(res == 0, 1.0, 0.0))
+    return float(per.mean())

@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import warnings
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, overload
 
 import numpy as np
 from numpy.polynomial import Polynomial
@@ -38,21 +38,52 @@ _NUMPY_KIND: dict[str, Any] = {
 
 @dataclass(frozen=True)
 class MonomialForm:
-    """p and q as dense tensors P[a_1..a_d] of x_1^a_1 ... x_d^a_d coefficients."""
+    """p and q as dense tensors p[a_1..a_d] of x_1^a_1 ... x_d^a_d coefficients.
 
-    P: Array
-    Q: Array
+    Named ``p`` and ``q`` like the coefficients of
+    :class:`~ratfit.core.rational.RationalFunction` (``P`` and ``Q`` are
+    deprecated aliases).
+    """
+
+    p: Array
+    q: Array
     method: str  # "numpy" or "fft"
     max_rel_diff: float  # max |r_mono - r| / max |r| on the data points
     errors: dict[str, float]  # the same for every method tried
 
-    def __call__(self, x: ArrayLike) -> Array:
+    @property
+    def P(self) -> Array:  # noqa: N802 -- the deprecated name
+        """Deprecated: use ``p``."""
+        warnings.warn("MonomialForm.P is deprecated; use .p (as on a fit)",
+                      DeprecationWarning, stacklevel=2)
+        return self.p
+
+    @property
+    def Q(self) -> Array:  # noqa: N802 -- the deprecated name
+        """Deprecated: use ``q``."""
+        warnings.warn("MonomialForm.Q is deprecated; use .q (as on a fit)",
+                      DeprecationWarning, stacklevel=2)
+        return self.q
+
+    @overload
+    def __call__(self, x: float) -> float: ...
+
+    @overload
+    def __call__(self, x: ArrayLike) -> Array: ...
+
+    def __call__(self, x: ArrayLike) -> Array | float:
+        """Values at points x (N, d), or (N,) in 1-D; one point gives a float."""
+        dim = max(self.p.ndim, 1)
+        shape = np.shape(x)
+        if shape == () or (dim > 1 and shape == (dim,)):
+            pt = np.asarray(x, dtype=float).reshape(1, dim)
+            return float(self(pt[:, 0] if dim == 1 else pt)[0])
         with np.errstate(divide="ignore", invalid="ignore"):
-            return horner(x, self.P) / horner(x, self.Q)
+            return horner(x, self.p) / horner(x, self.q)
 
     def terms(self, which: str = "p") -> tuple[list[list[int]], list[float]]:
         """Nonzero coefficients as (exponents, values)."""
-        T = self.P if which == "p" else self.Q
+        T = self.p if which == "p" else self.q
         idx = np.argwhere(T != 0)
         return idx.tolist(), [float(T[tuple(i)]) for i in idx]
 

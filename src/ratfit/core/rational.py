@@ -11,7 +11,7 @@ precision. :meth:`RationalFunction.to_family` converts to the family.
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, overload
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -24,6 +24,17 @@ if TYPE_CHECKING:
 __all__ = ["RationalFunction"]
 
 Array = NDArray[np.float64]
+
+
+def _single_point(x: ArrayLike, dim: int) -> Array | None:
+    """``x`` as a (1, dim) array when it is one point (a number in 1-D, a vector of
+    length ``dim`` > 1 in n-D), else None: evaluations of one point return a float."""
+    if isinstance(x, np.ndarray) and x.dtype == object:
+        return None
+    shape = np.shape(x)
+    if shape == () or (dim > 1 and shape == (dim,)):
+        return np.asarray(x, dtype=float).reshape(1, dim)
+    return None
 
 
 class RationalFunction:
@@ -96,8 +107,20 @@ class RationalFunction:
         q = self.q if self.q_basis is None else self.q_basis.to_family(self.q)
         return RationalFunction(self.space, p, q)
 
-    def __call__(self, x: ArrayLike, *, window: bool = False) -> Array:
-        """Values at points x (N, d) or (N,) in 1-D; inf/NaN where q vanishes."""
+    @overload
+    def __call__(self, x: float, *, window: bool = False) -> float: ...
+
+    @overload
+    def __call__(self, x: ArrayLike, *, window: bool = False) -> Array: ...
+
+    def __call__(self, x: ArrayLike, *, window: bool = False) -> Array | float:
+        """Values at points x (N, d), or (N,) in 1-D; inf/NaN where q vanishes.
+
+        One point gives a float: a scalar in 1-D, a vector of length d in n-D.
+        """
+        single = _single_point(x, self.space.dim)
+        if single is not None:
+            return float(self(single, window=window)[0])
         with np.errstate(divide="ignore", invalid="ignore"):
             return self.numerator(x, window=window) / self.denominator(x, window=window)
 

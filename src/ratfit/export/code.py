@@ -142,7 +142,7 @@ def plan_forms(
                       f"pointwise at {len(pts)} check points")
             if not horner_ok:
                 reason += f", ABOVE the {rtol:.0e} accuracy target (forced by the user)"
-            out.append(ChannelForm(ch.name, "horner", "power", np.array(mf.P), np.array(mf.Q),
+            out.append(ChannelForm(ch.name, "horner", "power", np.array(mf.p), np.array(mf.q),
                                    None, None, reason, err))
         elif rf.p_basis is not None and rf.q_basis is not None and (
             form == "recurrence" or (form == "auto" and (fam_err := _family_error(rf, pts))

@@ -60,12 +60,13 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from ratfit.core.bases import PolynomialSpace
-from ratfit.core.estimator import Estimator
+from ratfit.core.estimator import Regressor
 from ratfit.core.options import (  # noqa: F401  (re-exported: where they used to live)
     DEFAULT_MAX_TOTAL,
     DEFAULT_TIME_LIMIT,
     FIT_OPTIONS,
     FORMULATIONS,
+    SEGMENT_OPTIONS,
     SPLIT_RULES,
     STRATEGIES,
     FitOptions,
@@ -96,14 +97,25 @@ Array = NDArray[np.float64]
 
 
 
-class RationalFitter(Estimator):
+class RationalFitter(Regressor):
     """Fit r = p / q inside vertical segments with the fewest coefficients.
 
-    Every parameter is stored unchanged and checked in :meth:`fit`
-    (scikit-learn conventions: ``get_params``, ``set_params``, ``clone`` work).
+    A scikit-learn regressor in shape: ``fit(X, y)`` builds the segments from
+    ``dt`` and/or ``abs_width``, ``predict(X)`` evaluates the fit and ``score``
+    is R^2, so ``cross_val_score``, ``clone``, grid searches and pipelines work
+    (scikit-learn itself is not needed). ``fit(segments)`` takes prepared
+    :class:`~ratfit.core.segments.Segments` (bounds of one's own) instead.
+    Every parameter is stored unchanged and checked in :meth:`fit`.
 
     Parameters
     ----------
+    dt : float, optional
+        Relative half-width of the segments ``fit(X, y)`` builds:
+        [(1 - dt) y, (1 + dt) y].
+    abs_width : float, optional
+        Absolute half-width [y - w, y + w] (with ``dt`` each segment is the
+        union of both). ``fit(X, y)`` needs one of the two; ``fit(segments)``
+        needs neither (its segments carry their bounds).
     basis : {"legendre", "chebyshev", "monomial"}, default "legendre"
         Polynomial family of p and q ("monomial": powers of the scaled
         variable, the seed's "centered monomials").
@@ -178,9 +190,14 @@ class RationalFitter(Estimator):
     >>> import numpy as np
     >>> from ratfit import RationalFitter, Segments
     >>> x = np.linspace(-1, 1, 50)
+    >>> f = RationalFitter(dt=0.01).fit(x[:, None], 1 / (2 + x))
+    >>> f.success_, f.result_.verification.max_violation, round(f.score(x, 1 / (2 + x)), 4)
+    (True, 0.0, 1.0)
+    >>> f.predict([[0.5]]).round(2).tolist(), round(f.rational_(0.5), 2)   # 1 / 2.5 +- 1 %
+    ([0.4], 0.4)
     >>> f = RationalFitter().fit(Segments.from_relative(x, 1 / (2 + x), 0.01))
-    >>> f.result_.success, f.result_.verification.max_violation
-    (True, 0.0)
+    >>> f.result_.success
+    True
     """
 
     #: The class of this estimator's checked options: every constructor parameter
@@ -191,6 +208,8 @@ class RationalFitter(Estimator):
     def __init__(
         self,
         *,
+        dt: float | None = None,
+        abs_width: float | None = None,
         basis: str = "legendre",
         index_set: str = "total",
         domain: ArrayLike | None = None,
@@ -211,6 +230,8 @@ class RationalFitter(Estimator):
         variable: str = "auto",
         warm_start: bool = True,
     ) -> None:
+        self.dt = dt
+        self.abs_width = abs_width
         self.basis = basis
         self.index_set = index_set
         self.domain = domain
@@ -241,8 +262,37 @@ class RationalFitter(Estimator):
         return cls(**options.params())
 
     def options(self) -> FitOptions:
-        """The constructor parameters as checked options (InputError when one is bad)."""
-        return self.options_type.from_params(self.get_params(deep=False))
+        """The search's constructor parameters as checked options (InputError when one
+        is bad); the segment widths (``dt``, ``abs_width``) are not among them."""
+        params = self.get_params(deep=False)
+        for name in SEGMENT_OPTIONS:
+            SEGMENT_OPTIONS[name].check(params.pop(name))
+        return self.options_type.from_params(params)
+
+    def segments_of(self, X: ArrayLike | Segments, y: ArrayLike | None = None) -> Segments:
+        """The segments ``fit(X, y)`` fits: ``X`` itself when it is a
+        :class:`~ratfit.core.segments.Segments`, else built from ``y`` with ``dt``
+        and/or ``abs_width``. Combinations that cannot mean anything are refused."""
+        widths = [f"{k}={getattr(self, k)!r}" for k in SEGMENT_OPTIONS
+                  if getattr(self, k) is not None]
+        if isinstance(X, Segments):
+            if y is not None:
+                raise InputError("fit(segments, y): Segments carry their own bounds; "
+                                 "give y only with an array X")
+            if widths:
+                raise InputError(
+                    f"{', '.join(widths)} builds segments from fit(X, y), but fit() got "
+                    "Segments with bounds of their own: leave dt and abs_width at None")
+            return X
+        if y is None:
+            raise InputError(
+                f"fit() got {type(X).__name__} without y: give fit(X, y) with "
+                f"{type(self).__name__}(dt=...) or abs_width=..., or fit(Segments)")
+        if not widths:
+            raise InputError(
+                f"fit(X, y) builds segments around y from the width options: give "
+                f"{type(self).__name__}(dt=...) (relative) and/or abs_width=... (absolute)")
+        return Segments.from_widths(X, y, dt=self.dt, abs_width=self.abs_width)
 
     def prepare(self, seg: Segments) -> PolynomialSpace:
         """Check the options, alone and against ``seg``, and keep them (``options_``);
@@ -400,10 +450,20 @@ class RationalFitter(Estimator):
         return SearchParts(systems=systems, verifier=verify_channel)
 
     # -- fitting -----------------------------------------------------------------------
-    def fit(self, segments: Segments) -> RationalFitter:
-        """Fit every channel of ``segments``; returns self."""
-        if not isinstance(segments, Segments):
-            raise TypeError(f"fit() takes a Segments object, got {type(segments).__name__}")
+    def fit(self, X: ArrayLike | Segments, y: ArrayLike | None = None) -> Self:
+        """Fit every channel; returns self.
+
+        Parameters
+        ----------
+        X : array-like of shape (N,) or (N, d), or Segments
+            Points (with ``y``), or prepared segments (without).
+        y : array-like of shape (N,) or (N, k), optional
+            Values; the segments are built around them from ``dt`` / ``abs_width``.
+        """
+        return self._fit_segments(self.segments_of(X, y))
+
+    def _fit_segments(self, segments: Segments) -> Self:
+        """Fit every channel of ``segments`` (subclasses extend this, not :meth:`fit`)."""
         space = self.prepare(segments)
         self.space_ = space
         self.segments_ = segments
@@ -428,6 +488,21 @@ class RationalFitter(Estimator):
             for j, (r, f) in enumerate(zip(results, factors, strict=True))
         ]
         return self
+
+    def predict(self, X: ArrayLike) -> Array:
+        """Values of the fit at points ``X`` (N, d) or (N,) in 1-D: shape (N,) for
+        one channel, (N, k) for k. Every channel needs a verified fit
+        (``success_``); a pole-free verified fit is finite on its domain."""
+        res = self._fitted().results_
+        fits = [r.rational for r in res if r.success]
+        missing = [r.channel for r in res if not r.success]
+        if missing or None in fits:
+            raise InputError(
+                f"no verified fit for channel(s) {', '.join(missing)} "
+                f"({res[0].message if len(res) == 1 else 'see results_'}): nothing to predict "
+                "with; widen the segments (dt, abs_width) or raise max_total")
+        cols = [np.asarray(rf(X), dtype=float).reshape(-1) for rf in fits if rf is not None]
+        return cols[0] if len(cols) == 1 else np.stack(cols, axis=1)
 
     @property
     def result_(self) -> FitResult:
