@@ -26,7 +26,11 @@ _FILE = click.Path(dir_okay=False, path_type=Path)
                    "Clenshaw in the fit's orthogonal basis.")
 @click.option("--prefix", default="ratfit", show_default=True, help="Prefix of every name.")
 def export_cmd(fit_path: Path, lang: str, output: Path, form: str, prefix: str) -> None:
-    """Write C, GLSL or Python source evaluating a saved (verified) fit."""
+    """Write C, GLSL or Python source evaluating a saved (verified) fit.
+
+    An ALTA rational function file is exported too, its header saying that ratfit
+    did not verify it.
+    """
     from ratfit._atomic import is_stream
     from ratfit.export.code import export_fit
 

@@ -93,7 +93,11 @@ def fit_cmd(input_path: Path, output: Path | None, fmt: str | None, dt: float | 
               help="Write values to .csv or .npy (default: CSV on stdout).")
 @click.option("--format", "fmt", type=click.Choice(FORMATS))
 def eval_cmd(fit_path: Path, input_path: Path, output: Path | None, fmt: str | None) -> None:
-    """Values of a saved fit at the points of INPUT."""
+    """Values of a saved fit at the points of INPUT.
+
+    FIT.json is a ratfit fit file or an ALTA rational function file (read as an
+    unverified fit), as for export, plot and report.
+    """
     from ratfit._atomic import atomic_open
     from ratfit.errors import InputError
     from ratfit.io.data import read_data

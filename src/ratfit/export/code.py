@@ -21,6 +21,7 @@ L and V in the local frame (normal +z), with the same formulas as
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import os
 import warnings
@@ -103,6 +104,10 @@ def _check_points(saved: SavedFit, points: ArrayLike | None, count: int = 2000) 
 
 
 def _unverified(saved: SavedFit) -> list[str]:
+    """Channels recorded as failed. An ALTA function file records nothing either way:
+    it is exported with a header that says ratfit never verified it."""
+    if getattr(saved, "integrity", "sealed") == "alta":
+        return []
     return [c.name for c in saved.channels if c.summary.get("verified") is not True]
 
 
@@ -799,6 +804,9 @@ def _validity(saved: SavedFit) -> str:
     if integrity == "edited":
         return ("NOT VERIFIED: the fit file was edited after ratfit wrote it (its digest does "
                 "not match); nothing is known about this function's accuracy or poles.")
+    if integrity == "alta":
+        return ("NOT VERIFIED: an ALTA function file; ratfit copied its coefficients and "
+                "checked nothing about its accuracy or poles. Domain as above.")
     if integrity == "legacy":
         return ("NOT VERIFIED: an old fit file without a content digest (cannot be told from "
                 "an edited one); refit to get a verified one. Domain as above.")
@@ -817,6 +825,16 @@ def load_any_fit(path: str | os.PathLike[str]) -> tuple[SavedFit, Any]:
         from ratfit.brdf.fitter import load_brdf_fit
 
         return saved, load_brdf_fit(path)
+    if saved.integrity == "alta":
+        # an ALTA function whose #PARAM_IN names a parametrization of its dimension
+        from ratfit.brdf.fitter import BRDFFit
+        from ratfit.brdf.parametrizations import find_parametrization
+
+        param = find_parametrization(str(saved.provenance.get("param_in", "")))
+        if param is not None and param.dim == saved.space.dim:
+            saved = dataclasses.replace(
+                saved, extra={**saved.extra, "brdf": {"parametrization": param.name}})
+            return saved, BRDFFit(saved, param.name, False, False, ())
     return saved, None
 
 

@@ -19,6 +19,7 @@ import os
 import re
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 from numpy.polynomial import chebyshev as _cheb
@@ -29,6 +30,10 @@ from numpy.typing import ArrayLike, NDArray
 from ratfit._atomic import atomic_open
 from ratfit.errors import FileFormatError, InputError
 from ratfit.io.data import Dataset, write_alta
+
+if TYPE_CHECKING:
+    from ratfit.core.bases import PolynomialSpace
+    from ratfit.io.fitfile import SavedFit
 
 __all__ = ["ALTAFunction", "RationalBlock", "read_alta_function", "write_alta_data",
            "write_alta_function"]
@@ -93,6 +98,63 @@ class ALTAFunction:
             for j, (ks, n) in enumerate(self.blinn):
                 out[:, j] += ks * np.power(np.clip(hz, 0.0, None), n)
         return out
+
+
+    def to_saved_fit(self) -> SavedFit:
+        """This rational function as a :class:`~ratfit.io.fitfile.SavedFit`: what
+        :func:`~ratfit.io.fitfile.load_fit` returns for an ALTA file, so ``eval``,
+        ``export``, ``plot`` and ``report`` take ALTA fits as they take ratfit's.
+
+        ALTA maps ``#MIN``/``#MAX`` to [-1, 1] as ratfit maps its domain, so the
+        coefficients go over unchanged (placed at their multi-indices in ratfit's
+        graded order, zeros between). The result is marked ``integrity="alta"``:
+        ratfit holds no verification record for it (``verified`` is False).
+        ``provenance["param_in"]`` keeps ``#PARAM_IN``: where it names a ratfit BRDF
+        parametrization of the same dimension,
+        :func:`ratfit.export.code.load_any_fit` makes it a BRDF fit.
+        """
+        from ratfit.core.bases import PolynomialSpace
+        from ratfit.core.rational import RationalFunction
+        from ratfit.io.fitfile import SavedChannel, SavedFit
+
+        if not self.rational or self.diffuse is not None or self.blinn:
+            kinds = [k for k, have in (("rational", bool(self.rational)),
+                                       ("diffuse", self.diffuse is not None),
+                                       ("Blinn", bool(self.blinn))) if have]
+            raise FileFormatError(
+                f"{self.source}: an ALTA {' + '.join(kinds)} function; ratfit commands take "
+                "ALTA rational functions only (ratfit.io.alta_function.read_alta_function "
+                "evaluates the others in Python)")
+        assert self.lo is not None and self.hi is not None
+        space = PolynomialSpace(self.basis, np.stack([self.lo, self.hi], axis=1))
+        channels = []
+        for j, b in enumerate(self.rational):
+            p, q = _graded(space, b.p_idx, b.p), _graded(space, b.q_idx, b.q)
+            summary: dict[str, object] = {"verified": False, "source": "ALTA"}
+            summary.update({f"alta_{k}": v for k, v in self.metrics.items()})
+            channels.append(SavedChannel(f"y{j}", RationalFunction(space, p, q), summary,
+                                         None))
+        prov = {"source": "ALTA function file", "alta_cmd": self.cmd,
+                "param_in": self.param_in}
+        return SavedFit(space, tuple(channels), prov, 0, {}, integrity="alta")
+
+
+def _graded(space: PolynomialSpace, idx: NDArray[np.int64], coef: Array) -> Array:
+    """Coefficients at ALTA's multi-indices ``idx`` placed in ``space``'s graded order."""
+    count = _total_count(space.dim, int(idx.sum(axis=1).max()))
+    order = {tuple(int(v) for v in row): i for i, row in enumerate(space.indices(count))}
+    out = np.zeros(count)
+    for row, c in zip(idx.tolist(), coef, strict=True):
+        out[order[tuple(row)]] += float(c)
+    last = int(np.flatnonzero(out)[-1]) + 1 if np.any(out) else 1
+    return out[:last]
+
+
+def _total_count(dim: int, degree: int) -> int:
+    """Multi-indices in ``dim`` variables of total degree <= ``degree``."""
+    from math import comb
+
+    return comb(degree + dim, dim)
 
 
 def _poly_val(vs: list[Array], idx: NDArray[np.int64], coef: Array) -> Array:

@@ -61,7 +61,8 @@ class SavedFit:
     # Top-level keys an application added with fit_document(extra=...) (e.g. "brdf").
     extra: dict[str, Any] = field(default_factory=dict)
     # "sealed": the content matches the digest ratfit wrote; "legacy": a file from
-    # before digests; "edited": a mismatch accepted with --trust-edited.
+    # before digests; "edited": a mismatch accepted with --trust-edited; "alta": an
+    # ALTA function file (no verification record).
     integrity: str = "sealed"
 
     @property
@@ -258,6 +259,9 @@ def load_fit(path: str | os.PathLike[str], *, trust_edited: bool | None = None) 
 
     A file whose content does not match its digest was edited after ratfit wrote
     it: refused, unless ``trust_edited`` (then loaded with ``verified`` False).
+    An ALTA function file (``#ALTA FUNC HEADER``) is read too, as an unverified
+    fit (:meth:`ratfit.io.alta_function.ALTAFunction.to_saved_fit`): every command
+    that takes a fit file takes ALTA's rational functions through here.
 
     Parameters
     ----------
@@ -285,6 +289,10 @@ def load_fit(path: str | os.PathLike[str], *, trust_edited: bool | None = None) 
     p = Path(path)
     if not p.is_file():
         raise FileFormatError(f"{p}: no such fit file")
+    if _is_alta_function(p):
+        from ratfit.io.alta_function import read_alta_function
+
+        return read_alta_function(p).to_saved_fit()
     try:
         doc = json.loads(p.read_text())
     except UnicodeDecodeError:
@@ -299,6 +307,17 @@ def load_fit(path: str | os.PathLike[str], *, trust_edited: bool | None = None) 
         raise FileFormatError(f"{p}: not a ratfit fit file ({exc})") from None
     trust = _TRUST_EDITED.get() if trust_edited is None else trust_edited
     return parse_fit(doc, str(p), trust_edited=trust)
+
+
+def _is_alta_function(p: Path) -> bool:
+    """An ALTA function file (its first line ``#ALTA FUNC HEADER``), which
+    :func:`load_fit` reads through :mod:`ratfit.io.alta_function`."""
+    try:
+        with open(p, "rb") as fh:
+            head = fh.read(64)
+    except OSError:
+        return False
+    return head.lstrip(b"\xef\xbb\xbf \t\r\n").startswith(b"#ALTA FUNC HEADER")
 
 
 def parse_fit(doc: Any, where: str = "fit", *, trust_edited: bool = False) -> SavedFit:

@@ -376,7 +376,10 @@ def _html(fit: LoadedFit, data_path, res: ReportResult, pics, version: str) -> s
     diag += "</table>"
     if sealed:
         diag += f"<p>{e(scope_text(fit.saved, reprove_saved(fit.saved)))}</p>"
-    if not sealed:
+    if getattr(fit.saved, "integrity", "sealed") == "alta":
+        diag += ("<p class='bad'>An ALTA function file: ratfit holds no verification record "
+                 "for it; the metrics compare it with the data only.</p>")
+    elif not sealed:
         diag += ("<p class='bad'>The fit file was edited after ratfit wrote it (or predates "
                  "content digests): its verification record is not trusted.</p>")
     if res.recheck is not None:
