@@ -573,9 +573,13 @@ BAD_FIT: dict[str, tuple[FitCase, tuple[str, ...]]] = {
         lambda c: [c.shared() / "alta" / "fits" / "Kirby2.brdf", "--dt", "0.1"],
         ("function|fit result",),
     ),
-    "exr-image-real": (
+    "exr-image-real": (  # issue 27: names the command that fits it
         lambda c: [c.shared() / "alta" / "data-example-01.exr", "--dt", "0.1"],
-        ("data-example-01.exr", "text|binary"),
+        ("data-example-01.exr", "measured BRDF file \\(exr\\)", "`ratfit brdf fit "),
+    ),
+    "cornell-brdf-real": (
+        lambda c: [c.shared() / "cornell" / "cayman.brdf", "--dt", "0.1"],
+        ("cayman.brdf", "measured BRDF file \\(cornell\\)", "`ratfit brdf fit "),
     ),
     "truncated-alta-mid-row": (_truncated_alta, ("data.alta", "line 24", r"expected \d")),
     "truncated-alta-real": (

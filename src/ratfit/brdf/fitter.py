@@ -48,8 +48,9 @@ from ratfit.io.fitfile import SavedFit, fit_document, load_fit, save_fit
 __all__ = ["BRDF_SOLVER", "DEFAULT_DT", "DEFAULT_FLOOR_REL", "BRDFFit", "BRDFFitter",
            "HALF_VECTOR", "HALF_VECTOR_FLOOR_REL", "candidate_parametrizations",
            "default_floor_rel", "brdf_metrics", "widened_dt", "brdf_segments",
-           "cos_theta_l", "default_dt", "fit_brdf", "fit_brdf_auto",
-           "load_brdf_fit", "nonnegative_segments", "prepare_values", "resolve_widths",
+           "check_floor_rel", "cos_theta_l", "default_dt", "fit_brdf", "fit_brdf_auto",
+           "alta_brdf_fit", "load_brdf_fit", "nonnegative_segments", "prepare_values",
+           "resolve_widths",
            "save_brdf_fit",
            "subset_status", "valid_grid"]
 
@@ -177,6 +178,19 @@ def default_floor_rel(param: str) -> float:
         else DEFAULT_FLOOR_REL
 
 
+def check_floor_rel(dt: float | None, abs_width: float | None,
+                    floor_rel: float | None) -> None:
+    """Refuse a floor under no width: ``floor_rel`` alone makes every segment
+    [y - f max, y + f max] with no relative part (``--floor-rel 1e-4`` gave segments
+    of relative width ~0 at the peak: 177 s and no fit)."""
+    if floor_rel is not None and dt is None and abs_width is None:
+        raise InputError(
+            f"--floor-rel {floor_rel:g} without --dt: a floor under no relative width "
+            "makes every segment [y - f*max, y + f*max] (nearly 0 relative width at the "
+            f"peak); give --dt too (e.g. --dt 0.05 --floor-rel {floor_rel:g}), or "
+            "--abs-width for absolute segments")
+
+
 def resolve_widths(ds: Dataset, dt: float | None, abs_width: float | None,
                    floor_rel: float | None, *, cosine: bool = False,
                    clamp: float | None = None
@@ -244,6 +258,7 @@ def fit_brdf(ds: Dataset, *, dt: float | None = None, abs_width: float | None = 
     from ratfit.core.columns import constant_axes
 
     full = ds
+    check_floor_rel(dt, abs_width, floor_rel)
     dt, abs_width, floor_rel, default_widths = resolve_widths(
         ds, dt, abs_width, floor_rel, cosine=cosine, clamp=clamp)
     dropped = constant_axes(ds.x) if ds.n_points > 1 else np.arange(0)
@@ -1105,8 +1120,21 @@ class BRDFFit:
         return vals
 
 
+def alta_brdf_fit(saved: SavedFit) -> BRDFFit | None:
+    """An ALTA function file (``load_fit`` of one) as a BRDF fit when its
+    ``#PARAM_IN`` names a parametrization of its dimension, else None."""
+    if saved.integrity != "alta":
+        return None
+    param = find_parametrization(str(saved.provenance.get("param_in", "")))
+    if param is None or param.dim != saved.space.dim:
+        return None
+    saved = replace(saved, extra={**saved.extra, "brdf": {"parametrization": param.name}})
+    return BRDFFit(saved, param.name)
+
+
 def load_brdf_fit(path: str | os.PathLike[str]) -> BRDFFit:
-    """Load a fit written by ``ratfit brdf fit`` (it must carry the "brdf" block)."""
+    """Load a fit written by ``ratfit brdf fit`` (it must carry the "brdf" block), or
+    an ALTA rational function file whose ``#PARAM_IN`` is a BRDF parametrization."""
     return brdf_fit_of_saved(load_fit(path), str(path))
 
 
@@ -1120,8 +1148,16 @@ def brdf_fit_of(results: list[FitResult], brdf_meta: dict[str, Any]) -> BRDFFit:
 
 
 def brdf_fit_of_saved(saved: SavedFit, path: str) -> BRDFFit:
-    """A loaded fit file as a BRDF fit (it must carry the "brdf" block)."""
+    """A loaded fit file as a BRDF fit (it must carry the "brdf" block, or be an ALTA
+    function in a BRDF parametrization)."""
     meta = saved.extra.get("brdf")
+    if saved.integrity == "alta":
+        bf = alta_brdf_fit(saved)
+        if bf is None:
+            raise FileFormatError(
+                f"{path}: an ALTA function in {saved.provenance.get('param_in')!r} of "
+                f"{saved.space.dim} input(s): not a BRDF parametrization ratfit knows")
+        return bf
     if not isinstance(meta, dict) or "parametrization" not in meta:
         raise FileFormatError(
             f"{path}: a ratfit fit file without a 'brdf' block: not a BRDF fit "

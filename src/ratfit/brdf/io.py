@@ -28,6 +28,7 @@ from ratfit.io.data import Dataset, read_data
 
 __all__ = [
     "BRDF_FORMATS",
+    "measured_brdf_format",
     "MERL_SCALE",
     "MERL_SHAPE",
     "BRDFSamples",
@@ -464,6 +465,28 @@ def _sniff(p: Path, head: bytes) -> str:
     return "cornell"
 
 
+def measured_brdf_format(path: _PathLike) -> str | None:
+    """The BRDF-only format of ``path`` ("merl", "exr", "cornell", "astm") when its
+    content or name says so clearly, else None (ALTA text, CSV and the rest are
+    read by ``ratfit fit`` too). ``ratfit fit`` names ``ratfit brdf fit`` for these."""
+    p = Path(path)
+    try:
+        with open(p, "rb") as fh:
+            head = fh.read(4096)
+    except OSError:
+        return None
+    suf = p.suffix.lower()
+    if head.startswith(b"\x76\x2f\x31\x01") or suf == ".exr":
+        return "exr"
+    if suf == ".binary" or head[:12] == np.asarray(MERL_SHAPE, "<i4").tobytes():
+        return "merl"
+    if suf == ".astm" or b"VARS" in head:
+        return "astm"
+    if suf == ".brdf" and b"Cornell" in head and b"wls" in head:
+        return "cornell"
+    return None
+
+
 def read_brdf(path: _PathLike, *, fmt: str | None = None) -> BRDFSamples:
     """Read any supported BRDF file into samples in its own parametrization."""
     src = str(path)
@@ -538,6 +561,10 @@ def samples_dataset(
             values = spectrum_to_rgb(meta["wavelengths"], values, space=color)
             names = ("R", "G", "B") if color == "rgb" else ("X", "Y", "Z")
         meta["color"] = color
+    elif color != "rgb":
+        raise InputError(
+            f"{src}: --color {color} converts spectral (Cornell) data; this "
+            f"{meta.get('format', 'BRDF')} file has channels {', '.join(names)} already")
     keep = pick_channels(names, channels, src)
     values = values[:, keep]
     names = tuple(names[j] for j in keep)

@@ -26,6 +26,7 @@ from numpy.typing import ArrayLike, NDArray
 from ratfit.errors import InputError
 
 __all__ = [
+    "DIRECTION_TOL",
     "PARAMETRIZATIONS",
     "Parametrization",
     "check_dirs",
@@ -37,8 +38,12 @@ __all__ = [
 
 Array = NDArray[np.float64]
 
-# Unit vectors may be off by rounding; anything further is a caller's error.
+# Unit vectors (coordinates converted back) may be off by rounding; anything further
+# is a caller's error.
 _UNIT_TOL = 1e-6
+#: How far a direction given by a user (typed, read from a file) may be from unit
+#: length and still be normalised: 4-digit components are off by up to ~1e-4.
+DIRECTION_TOL = 1e-3
 # A direction with z below -_HORIZON_TOL is below the surface.
 _HORIZON_TOL = 1e-12
 
@@ -91,7 +96,12 @@ class Parametrization:
 
 # --------------------------------------------------------------------------- checks
 def check_dirs(L: ArrayLike, V: ArrayLike) -> tuple[Array, Array]:
-    """L, V as (N, 3) unit vectors on or above the horizon, else InputError."""
+    """L, V as (N, 3) unit vectors on or above the horizon, else InputError.
+
+    Directions within :data:`DIRECTION_TOL` of unit length are normalised: a
+    direction typed to 4 digits (0.7071, 0, 0.7071 has length 0.99999) is meant
+    as a unit vector; one further off is a mistake, not rounding.
+    """
     out = []
     for name, d in (("L", L), ("V", V)):
         try:
@@ -106,11 +116,12 @@ def check_dirs(L: ArrayLike, V: ArrayLike) -> tuple[Array, Array]:
             i = int(np.argwhere(~np.isfinite(a))[0][0])
             raise InputError(f"direction {name} has a non-finite value at row {i}")
         norm = np.linalg.norm(a, axis=1)
-        off = np.abs(norm - 1.0) > _UNIT_TOL
+        off = np.abs(norm - 1.0) > DIRECTION_TOL
         if off.any():
             i = int(np.flatnonzero(off)[0])
             raise InputError(
-                f"direction {name} row {i} is not a unit vector (length {norm[i]!r}); "
+                f"direction {name} row {i} is not a unit vector (length {float(norm[i]):.6g}; "
+                f"directions within {DIRECTION_TOL:g} of length 1 are normalised); "
                 f"{int(off.sum())} such row(s)"
             )
         a = a / norm[:, None]

@@ -125,6 +125,19 @@ def check_size_flags(params: dict[str, Any], *, shared: bool = False) -> None:
         raise click.UsageError("give both --n and --m, or neither")
     if n is not None and total is not None:
         raise click.UsageError("--n/--m and --total are exclusive")
+    # Options that steer a search over totals mean nothing once the size is fixed.
+    fixed = "--n/--m fix the split" if n is not None and m is not None else \
+        "--total fixes the total" if total is not None else None
+    if fixed is not None:
+        search = ("min_total", "max_total", "strategy") + (
+            ("split_rule",) if total is None else ())
+        given = [FIT_OPTIONS[k].flag for k in search
+                 if k in params and params[k] != FIT_OPTIONS[k].default]
+        if given:
+            raise click.UsageError(
+                f"{fixed}: {', '.join(given)} only "
+                f"{'steers' if len(given) == 1 else 'steer'} a search over totals; drop "
+                f"{'it' if len(given) == 1 else 'them'} or drop {fixed.split()[0]}")
 
 
 class _AliasedOption(click.Option):

@@ -21,7 +21,6 @@ L and V in the local frame (normal +z), with the same formulas as
 
 from __future__ import annotations
 
-import dataclasses
 import math
 import os
 import warnings
@@ -826,15 +825,11 @@ def load_any_fit(path: str | os.PathLike[str]) -> tuple[SavedFit, Any]:
 
         return saved, load_brdf_fit(path)
     if saved.integrity == "alta":
-        # an ALTA function whose #PARAM_IN names a parametrization of its dimension
-        from ratfit.brdf.fitter import BRDFFit
-        from ratfit.brdf.parametrizations import find_parametrization
+        from ratfit.brdf.fitter import alta_brdf_fit
 
-        param = find_parametrization(str(saved.provenance.get("param_in", "")))
-        if param is not None and param.dim == saved.space.dim:
-            saved = dataclasses.replace(
-                saved, extra={**saved.extra, "brdf": {"parametrization": param.name}})
-            return saved, BRDFFit(saved, param.name, False, False, ())
+        bf = alta_brdf_fit(saved)
+        if bf is not None:
+            return bf.saved, bf
     return saved, None
 
 

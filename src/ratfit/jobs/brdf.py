@@ -106,6 +106,9 @@ class BRDFFitRequest:
             fix(self, "parametrization", get_parametrization(self.parametrization).name)
         for key in ("dt", "abs_width", "floor_rel", "clamp"):
             fix(self, key, check_nonnegative(getattr(self, key), key))
+        from ratfit.brdf.fitter import check_floor_rel
+
+        check_floor_rel(self.dt, self.abs_width, self.floor_rel)
         fix(self, "cosine", check_flag(self.cosine, "cosine"))
         fix(self, "channels", check_channels(self.channels))
         fix(self, "color", check_choice(self.color, "color", COLORS))

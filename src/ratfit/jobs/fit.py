@@ -162,6 +162,23 @@ class FitReport:
         return doc
 
 
+def _read_fit_data(req: FitRequest) -> Any:
+    """The request's data file; a measured BRDF file (MERL, EXR, Cornell, ASTM) is
+    refused with the command that fits it."""
+    from ratfit.brdf.io import measured_brdf_format
+    from ratfit.io.data import read_data
+
+    kind = measured_brdf_format(req.input) if req.format is None else None
+    try:
+        return read_data(req.input, fmt=req.format, dim=req.dim)
+    except RatfitError:
+        if kind is None:
+            raise
+    raise InputError(
+        f"{req.input}: a measured BRDF file ({kind}), not x/y data: fit it with "
+        f"`ratfit brdf fit {req.input}`")
+
+
 def fit_file(request: FitRequest | str | Path, *, data: Any = None) -> FitReport:
     """Fit a data file as ``request`` says; the one path of ``ratfit fit`` and batch tasks.
 
@@ -194,14 +211,13 @@ def fit_file(request: FitRequest | str | Path, *, data: Any = None) -> FitReport
     (True, [(1, 2)])
     """
     from ratfit.fitting.search import RationalFitter
-    from ratfit.io.data import read_data
     from ratfit.io.fitfile import file_sha256, save_fit
 
     req = request if isinstance(request, FitRequest) else FitRequest(Path(request))
     clock = Clock()
     with clock.phase("read"):
         if data is None:
-            data = read_data(req.input, fmt=req.format, dim=req.dim)
+            data = _read_fit_data(req)
         digest = file_sha256(req.input)
     with clock.phase("segments"):
         seg = _segments(req, data)
