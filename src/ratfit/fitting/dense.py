@@ -153,7 +153,8 @@ def fit_dense(fn: Callable[[Array], Array], x: ArrayLike, *, dt: float | None = 
         lo, hi = _band(y, dt, abs_width)
         seg = Segments(pts[:, None], lo[:, None], hi[:, None], y=y[:, None])
         params = fitter.get_params()
-        params.update(domain=domain, min_total=min_total)
+        # the segments are this loop's (dt/abs_width above), not the fitter's widths
+        params.update(domain=domain, min_total=min_total, dt=None, abs_width=None)
         if params.get("max_total") is not None and params["max_total"] < min_total:
             params["max_total"] = min_total
         result = RationalFitter(**params).fit(seg).result_
