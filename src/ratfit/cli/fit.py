@@ -40,10 +40,17 @@ from ratfit.io.data import FORMATS
 @click.option("--shared-denominator", "shared", is_flag=True,
               help="One q for every channel, one p per channel; minimises sum(n) + m "
                    "(--m fixes the denominator size).")
+@click.option("--between", "between", type=click.FloatRange(0, 1e6), metavar="MARGIN",
+              help="1-D: also bound the fit between neighbouring samples: at points between "
+                   "them (the midpoints, then wherever the check below finds r outside) r must "
+                   "lie within the two neighbours' segments (min lo .. max hi) widened by "
+                   "MARGIN times the data's range (max hi - min lo); the fit is then checked "
+                   "between every pair of samples and is not verified unless it stays there. "
+                   "Without it, the largest excursion is only reported.")
 @click.option("--json", "as_json", is_flag=True, help="Print one JSON object on stdout.")
 def fit_cmd(input_path: Path, output: Path | None, fmt: str | None, dt: float | None,
             abs_width: float | None, channels: tuple[int, ...], monomial: bool, as_json: bool,
-            shared: bool = False, **options: Any) -> None:
+            shared: bool = False, between: float | None = None, **options: Any) -> None:
     """Fit INPUT (ALTA text data, CSV, .npz or NIST StRD) with the fewest coefficients.
 
     Each channel gets its own n, m. Segments: --dt and/or --abs-width around the
@@ -61,7 +68,7 @@ def fit_cmd(input_path: Path, output: Path | None, fmt: str | None, dt: float | 
     request = FitRequest.from_settings(input_path, {
         **params, "format": fmt, "dt": dt, "abs_width": abs_width,
         "channels": channels, "monomial": monomial, "output": output,
-        "shared_denominator": shared})
+        "shared_denominator": shared, "between": between})
     cb, stop = _progress(True)  # stderr: JSON on stdout stays clean
     try:
         report = fit_file(request.with_progress(cb))
@@ -75,6 +82,11 @@ def fit_cmd(input_path: Path, output: Path | None, fmt: str | None, dt: float | 
         _write_json(report.summary())
     else:
         _print_report(report.results, report.written)
+        for exc in report.excursions:
+            if exc is not None:
+                click.echo(exc.describe())
+        if any(e is not None for e in report.excursions):
+            click.echo(f"(between samples: {report.between_summary()['method']})")
         if report.shared is not None:
             sh = report.shared
             click.echo(f"shared denominator: n = {list(sh.n)}, m = {sh.m}, "
