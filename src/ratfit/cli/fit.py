@@ -41,12 +41,13 @@ from ratfit.io.data import FORMATS
               help="One q for every channel, one p per channel; minimises sum(n) + m "
                    "(--m fixes the denominator size).")
 @click.option("--between", "between", type=click.FloatRange(0, 1e6), metavar="MARGIN",
-              help="1-D: also bound the fit between neighbouring samples: at points between "
-                   "them (the midpoints, then wherever the check below finds r outside) r must "
-                   "lie within the two neighbours' segments (min lo .. max hi) widened by "
-                   "MARGIN times the data's range (max hi - min lo); the fit is then checked "
-                   "between every pair of samples and is not verified unless it stays there. "
-                   "Without it, the largest excursion is only reported.")
+              help="1-D: also bound the fit between neighbouring samples. Allowed: the two "
+                   "neighbours' segments (min lo .. max hi) widened by MARGIN times the data's "
+                   "range (max hi - min lo). Rows at points between samples (the midpoints, "
+                   "then each gap's worst point, up to 8 refits) ask for half that widening; "
+                   "the fit is then checked between every pair of samples (critical points "
+                   "of p/q and a grid) and is not verified unless it stays within the "
+                   "allowance. Without it the largest excursion is only reported.")
 @click.option("--json", "as_json", is_flag=True, help="Print one JSON object on stdout.")
 def fit_cmd(input_path: Path, output: Path | None, fmt: str | None, dt: float | None,
             abs_width: float | None, channels: tuple[int, ...], monomial: bool, as_json: bool,

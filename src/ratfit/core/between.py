@@ -81,7 +81,10 @@ class Excursion:
         lo, hi = self.data_range
         return (f"channel {self.channel}: between samples the fit leaves the data's range "
                 f"[{lo:.6g}, {hi:.6g}] by {self.beyond_range:.3g} (r = {self.range_value:.6g} "
-                f"at x = {self.range_x:.6g}); --between MARGIN bounds it there")
+                f"at x = {self.range_x:.6g}); " + (
+                    "--between MARGIN bounds it there" if self.allowed is None else
+                    f"within the --between allowance of {self.allowed:.3g} beyond the "
+                    "neighbouring segments" if self.ok else "beyond the --between allowance"))
 
     def to_dict(self) -> dict:
         d = asdict(self)
