@@ -47,6 +47,9 @@ _MULX = {"legendre": _leg.legmulx, "chebyshev": _cheb.chebmulx, "monomial": _pol
 # recurrence reads them back (262 144 points, 35 functions: 0.065 s in blocks of 4096,
 # 0.14 s in blocks of 32 768, 0.2 s in one piece).
 _BLOCK = 4096
+# Up to this many points a block's recurrence folds its subtractions with one
+# subtract.reduce per function; above, a loop of in-place subtractions is faster.
+_FOLD_MAX = 1024
 
 
 class ArnoldiBasis:
@@ -188,9 +191,22 @@ class ArnoldiBasis:
         operations in this order, so their float64 values equal these."""
         k = c.size
         H = self.H
-        f = np.empty((k, tt.shape[1]))
+        b = tt.shape[1]
+        f = np.empty((k, b))
         f[0] = 1.0 / H[0, 0]
         s = c[0] * f[0]
+        if b <= _FOLD_MAX:
+            # Few points: the products at once, then subtract.reduce over the rows, a left
+            # fold ((v - h0 f0) - h1 f1) - ... per point: the same roundings as the loop
+            # below in one call (Thurber's 37 points, 37 functions: 1.0 ms, loop 3.8 ms).
+            buf = np.empty((k, b))
+            for i in range(1, k):
+                np.multiply(tt[self.dims[i]], f[self.parents[i]], out=buf[0])
+                np.multiply(H[:i, i, None], f[:i], out=buf[1:i + 1])
+                np.subtract.reduce(buf[:i + 1], axis=0, out=f[i])
+                f[i] /= H[i, i]
+                s = s + c[i] * f[i]
+            return s
         for i in range(1, k):
             v = tt[self.dims[i]] * f[self.parents[i]]
             for j in range(i):
