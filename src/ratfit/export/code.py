@@ -982,9 +982,7 @@ def _export_segments(saved: SavedFit, bf: Any, fit_path: str | os.PathLike[str],
                      data: str | os.PathLike[str] | None) -> tuple[Any, str]:
     """(segments, where from) for the export's check; (None, "") when there is no data."""
     from ratfit.io.fitfile import file_sha256
-    from ratfit.viz.report import LoadedFit, load_data_for, segments_of
 
-    fit = LoadedFit(str(fit_path), saved, bf)
     if data is None:
         prov = saved.provenance if isinstance(saved.provenance, dict) else {}
         path, sha = prov.get("input"), prov.get("input_sha256")
@@ -993,14 +991,41 @@ def _export_segments(saved: SavedFit, bf: Any, fit_path: str | os.PathLike[str],
         try:
             if not Path(path).is_file() or file_sha256(path) != sha:
                 return None, ""
-            ds = load_data_for(fit, path)
+            seg = _data_segments(saved, bf, path)
         except (OSError, RatfitError):
             return None, ""
-        seg = segments_of(fit, ds)
         return (None, "") if seg is None else (seg, f"the fit's input {Path(path).name}")
-    ds = load_data_for(fit, data)
-    seg = segments_of(fit, ds)
+    seg = _data_segments(saved, bf, data)
     if seg is None:
         raise InputError(f"{data}: cannot rebuild the fit's segments on this data (the fit "
                          "file records no widths and the file has no bounds)")
     return seg, Path(data).name
+
+
+def _data_segments(saved: SavedFit, bf: Any, path: str | os.PathLike[str]) -> Any:
+    """The segments the fit file's widths give on a data file, in the fit's variables
+    (a BRDF file in the fit's parametrization); None when they cannot be rebuilt."""
+    if bf is not None:
+        from ratfit.brdf.fitter import brdf_segments
+        from ratfit.brdf.io import brdf_dataset
+
+        ds = brdf_dataset(path, str(bf.parametrization))
+        meta = saved.extra.get("brdf", {}) if isinstance(saved.extra, dict) else {}
+        spec = meta.get("segments") or {}
+        seg = brdf_segments(ds, dt=spec.get("dt"), abs_width=spec.get("abs_width"),
+                            floor_rel=spec.get("floor_rel"),
+                            cosine=bool(meta.get("cosine_weighted")), clamp=meta.get("clamp"))
+    else:
+        from ratfit.io.data import read_data
+        from ratfit.io.fitfile import recorded_segments
+
+        ds = read_data(path)
+        if ds.dim != saved.space.dim:
+            raise InputError(f"{path} has {ds.dim} input dimension(s) but the fit has "
+                             f"{saved.space.dim}")
+        seg = recorded_segments(saved, ds)
+    if seg is not None and (seg.n_channels != len(saved.channels)
+                            or seg.dim != saved.space.dim):
+        raise InputError(f"{path} has {seg.n_channels} channel(s) of {seg.dim} variable(s) "
+                         f"but the fit has {len(saved.channels)} of {saved.space.dim}")
+    return seg
