@@ -1003,29 +1003,21 @@ def _export_segments(saved: SavedFit, bf: Any, fit_path: str | os.PathLike[str],
 
 
 def _data_segments(saved: SavedFit, bf: Any, path: str | os.PathLike[str]) -> Any:
-    """The segments the fit file's widths give on a data file, in the fit's variables
-    (a BRDF file in the fit's parametrization); None when they cannot be rebuilt."""
+    """The segments the fit file's widths give on a data file; None when they cannot be
+    rebuilt."""
     if bf is not None:
-        from ratfit.brdf.fitter import brdf_segments
-        from ratfit.brdf.io import brdf_dataset
+        raise InputError("export --data checks fits from `ratfit fit`; a BRDF fit's segments "
+                         "live in its coordinates after dropped columns and symmetry images "
+                         "(not checked in the exported form yet: the header says so)")
+    from ratfit.io.data import read_data
+    from ratfit.io.fitfile import recorded_segments
 
-        ds = brdf_dataset(path, str(bf.parametrization))
-        meta = saved.extra.get("brdf", {}) if isinstance(saved.extra, dict) else {}
-        spec = meta.get("segments") or {}
-        seg = brdf_segments(ds, dt=spec.get("dt"), abs_width=spec.get("abs_width"),
-                            floor_rel=spec.get("floor_rel"),
-                            cosine=bool(meta.get("cosine_weighted")), clamp=meta.get("clamp"))
-    else:
-        from ratfit.io.data import read_data
-        from ratfit.io.fitfile import recorded_segments
-
-        ds = read_data(path)
-        if ds.dim != saved.space.dim:
-            raise InputError(f"{path} has {ds.dim} input dimension(s) but the fit has "
-                             f"{saved.space.dim}")
-        seg = recorded_segments(saved, ds)
-    if seg is not None and (seg.n_channels != len(saved.channels)
-                            or seg.dim != saved.space.dim):
-        raise InputError(f"{path} has {seg.n_channels} channel(s) of {seg.dim} variable(s) "
-                         f"but the fit has {len(saved.channels)} of {saved.space.dim}")
+    ds = read_data(path)
+    if ds.dim != saved.space.dim:
+        raise InputError(f"{path} has {ds.dim} input dimension(s) but the fit has "
+                         f"{saved.space.dim}")
+    seg = recorded_segments(saved, ds)
+    if seg is not None and seg.n_channels != len(saved.channels):
+        raise InputError(f"{path} has {seg.n_channels} channel(s) but the fit has "
+                         f"{len(saved.channels)}")
     return seg
