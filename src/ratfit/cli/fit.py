@@ -83,11 +83,7 @@ def fit_cmd(input_path: Path, output: Path | None, fmt: str | None, dt: float | 
         _write_json(report.summary())
     else:
         _print_report(report.results, report.written)
-        for exc in report.excursions:
-            if exc is not None:
-                click.echo(exc.describe())
-        if any(e is not None for e in report.excursions):
-            click.echo(f"(between samples: {report.between_summary()['method']})")
+        _print_excursions(report)
         if report.shared is not None:
             sh = report.shared
             click.echo(f"shared denominator: n = {list(sh.n)}, m = {sh.m}, "
@@ -96,6 +92,22 @@ def fit_cmd(input_path: Path, output: Path | None, fmt: str | None, dt: float | 
             click.echo(f"no fit file written: not every channel is verified ({output})", err=True)
     if not report.success:
         sys.exit(EXIT_NO_FIT)
+
+
+def _print_excursions(report: Any) -> None:
+    """r between neighbouring samples, one wrapped paragraph per channel (1-D fits)."""
+    from rich.markup import escape
+
+    from ratfit.cli.main import console
+
+    done = [e for e in report.excursions if e is not None]
+    if not done:
+        return
+    con = console()
+    with stdout_guard():
+        for exc in done:
+            con.print(escape(exc.describe()), highlight=False)
+        con.print(escape(f"(between samples: {done[0].method})"), highlight=False)
 
 
 @main.command("eval")
