@@ -189,3 +189,30 @@ def test_dense_check_and_constraint_generation():
     r = out.result.rational(xd)
     f = addendum_function(xd)
     assert np.all(np.abs(r - f) <= 0.1 * np.abs(f) * (1 + 1e-12))
+
+
+@pytest.mark.parametrize(("npts", "dim"), [(37, 1), (3000, 1), (500, 2)])
+def test_arnoldi_evaluate_is_the_scalar_recurrence_bit_for_bit(npts, dim):
+    """evaluate() (what verify and eval judge, and what the exported recurrence reproduces)
+    equals the recurrence done one Python float operation at a time: phi_0 = 1 / H00,
+    v = t phi_parent, v -= H[j, i] phi_j for j in order, phi_i = v / H[i, i], s += c_i phi_i.
+    Both of its code paths (<= 1024 points a block: a subtract.reduce fold; more: a loop)."""
+    rng = np.random.default_rng(npts)
+    space = PolynomialSpace("legendre", [[-1.0, 1.0]] * dim)
+    t = rng.uniform(-1.0, 1.0, (npts, dim))
+    basis, _ = ArnoldiBasis.build(space, t, rng.uniform(0.5, 2.0, npts), 30)
+    c = rng.standard_normal(30)
+    got = basis.evaluate(t, c, window=True)
+    H = basis.H.tolist()
+    par, dims, cl = basis.parents.tolist(), basis.dims.tolist(), c.tolist()
+    for p in range(0, npts, max(1, npts // 40)):
+        row = t[p].tolist()
+        f = [1.0 / H[0][0]]
+        s = cl[0] * f[0]
+        for i in range(1, 30):
+            v = row[dims[i]] * f[par[i]]
+            for j in range(i):
+                v -= H[j][i] * f[j]
+            f.append(v / H[i][i])
+            s = s + cl[i] * f[i]
+        assert got[p] == s, (p, got[p], s)

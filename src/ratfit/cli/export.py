@@ -25,16 +25,26 @@ _FILE = click.Path(dir_okay=False, path_type=Path)
               help="auto: Horner on the monomial form when it keeps full accuracy, else "
                    "Clenshaw in the fit's orthogonal basis.")
 @click.option("--prefix", default="ratfit", show_default=True, help="Prefix of every name.")
-def export_cmd(fit_path: Path, lang: str, output: Path, form: str, prefix: str) -> None:
+@click.option("--data", "data_path", type=_FILE,
+              help="Data whose segments (widths from the fit file) the exported formula must "
+                   "meet, evaluated as the C/Python code evaluates it (default: the fit's input "
+                   "file when it is unchanged). A miss refuses the export (exit 1).")
+def export_cmd(fit_path: Path, lang: str, output: Path, form: str, prefix: str,
+               data_path: Path | None) -> None:
     """Write C, GLSL or Python source evaluating a saved (verified) fit.
 
+    The C and Python code evaluate with the same float64 operations, in the same order,
+    that the check used; the header says whether every segment was checked with it.
     An ALTA rational function file is exported too, its header saying that ratfit
-    did not verify it.
-    """
+    did not verify it."""
     from ratfit._atomic import is_stream
-    from ratfit.export.code import export_fit
+    from ratfit.export.code import UnverifiedExport, export_fit
 
-    res = export_fit(fit_path, lang, output, form=form, prefix=prefix)
+    try:
+        res = export_fit(fit_path, lang, output, form=form, prefix=prefix, data=data_path)
+    except UnverifiedExport as exc:
+        click.echo(f"error: {exc}", err=True)
+        raise click.exceptions.Exit(1) from None
     err = is_stream(output)  # code on stdout (-o -, a pipe): the notes go to stderr
     for line in res.describe():
         click.echo(line, err=err)

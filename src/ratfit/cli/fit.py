@@ -40,10 +40,18 @@ from ratfit.io.data import FORMATS
 @click.option("--shared-denominator", "shared", is_flag=True,
               help="One q for every channel, one p per channel; minimises sum(n) + m "
                    "(--m fixes the denominator size).")
+@click.option("--between", "between", type=click.FloatRange(0, 1e6), metavar="MARGIN",
+              help="1-D: also bound the fit between neighbouring samples. Allowed: the two "
+                   "neighbours' segments (min lo .. max hi) widened by MARGIN times the data's "
+                   "range (max hi - min lo). Rows at points between samples (the midpoints, "
+                   "then each gap's worst point, up to 8 refits) ask for half that widening; "
+                   "the fit is then checked between every pair of samples (critical points "
+                   "of p/q and a grid) and is not verified unless it stays within the "
+                   "allowance. Without it the largest excursion is only reported.")
 @click.option("--json", "as_json", is_flag=True, help="Print one JSON object on stdout.")
 def fit_cmd(input_path: Path, output: Path | None, fmt: str | None, dt: float | None,
             abs_width: float | None, channels: tuple[int, ...], monomial: bool, as_json: bool,
-            shared: bool = False, **options: Any) -> None:
+            shared: bool = False, between: float | None = None, **options: Any) -> None:
     """Fit INPUT (ALTA text data, CSV, .npz or NIST StRD) with the fewest coefficients.
 
     Each channel gets its own n, m. Segments: --dt and/or --abs-width around the
@@ -61,7 +69,7 @@ def fit_cmd(input_path: Path, output: Path | None, fmt: str | None, dt: float | 
     request = FitRequest.from_settings(input_path, {
         **params, "format": fmt, "dt": dt, "abs_width": abs_width,
         "channels": channels, "monomial": monomial, "output": output,
-        "shared_denominator": shared})
+        "shared_denominator": shared, "between": between})
     cb, stop = _progress(True)  # stderr: JSON on stdout stays clean
     try:
         report = fit_file(request.with_progress(cb))
@@ -75,6 +83,7 @@ def fit_cmd(input_path: Path, output: Path | None, fmt: str | None, dt: float | 
         _write_json(report.summary())
     else:
         _print_report(report.results, report.written)
+        _print_excursions(report)
         if report.shared is not None:
             sh = report.shared
             click.echo(f"shared denominator: n = {list(sh.n)}, m = {sh.m}, "
@@ -83,6 +92,22 @@ def fit_cmd(input_path: Path, output: Path | None, fmt: str | None, dt: float | 
             click.echo(f"no fit file written: not every channel is verified ({output})", err=True)
     if not report.success:
         sys.exit(EXIT_NO_FIT)
+
+
+def _print_excursions(report: Any) -> None:
+    """r between neighbouring samples, one wrapped paragraph per channel (1-D fits)."""
+    from rich.markup import escape
+
+    from ratfit.cli.main import console
+
+    done = [e for e in report.excursions if e is not None]
+    if not done:
+        return
+    con = console()
+    with stdout_guard():
+        for exc in done:
+            con.print(escape(exc.describe()), highlight=False)
+        con.print(escape(f"(between samples: {done[0].method})"), highlight=False)
 
 
 @main.command("eval")

@@ -32,10 +32,11 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from ratfit._atomic import atomic_open
-from ratfit.errors import AccuracyWarning, InputError
+from ratfit.errors import AccuracyWarning, InputError, RatfitError
 from ratfit.io.fitfile import SavedFit
 
-__all__ = ["LANGS", "ChannelForm", "ExportResult", "export_fit", "export_source", "plan_forms"]
+__all__ = ["LANGS", "ChannelForm", "ExportResult", "FormCheck", "UnverifiedExport", "check_forms",
+           "eval_forms", "export_fit", "export_source", "plan_forms"]
 
 Array = NDArray[np.float64]
 LANGS = ("c", "glsl", "python")
@@ -65,24 +66,56 @@ class ChannelForm:
 
 
 @dataclass(frozen=True)
+class FormCheck:
+    """One channel's segments checked with the exported formula itself (float64, the
+    generated code's operations in its order): ``met`` of ``total`` segments, the
+    largest miss ``worst`` (0 when every one is met) and the smallest margin."""
+
+    name: str
+    met: int
+    total: int
+    worst: float
+    min_margin: float
+    source: str  # where the segments came from
+
+    @property
+    def ok(self) -> bool:
+        return self.met == self.total
+
+    def describe(self) -> str:
+        if self.ok:
+            return (f"channel {self.name}: the exported formula meets all {self.total} "
+                    f"segments of {self.source} (smallest margin {self.min_margin:.3g})")
+        return (f"channel {self.name}: the exported formula MISSES {self.total - self.met} of "
+                f"{self.total} segments of {self.source}, worst by {self.worst:.3g}")
+
+
+class UnverifiedExport(RatfitError):
+    """The exported formula, evaluated as the generated code evaluates it, misses
+    segments the fit met: the export is refused (exit 1 in the CLI)."""
+
+
+@dataclass(frozen=True)
 class ExportResult:
     text: str
     lang: str
     forms: tuple[ChannelForm, ...]
     parametrization: str | None
+    checks: tuple[FormCheck, ...] = ()
 
     @property
     def success(self) -> bool:
-        """Always True: an export that cannot be made raises instead."""
-        return True
+        """True unless a checked channel misses a segment (such exports are refused)."""
+        return all(c.ok for c in self.checks)
 
     @property
     def message(self) -> str:
         return "; ".join(self.describe())
 
     def describe(self) -> list[str]:
-        """One line per channel: the form used and why (for CLI output)."""
-        return [f"channel {f.name}: {f.form} ({f.reason})" for f in self.forms]
+        """One line per channel: the form used and why, then the re-check (CLI output)."""
+        return ([f"channel {f.name}: {f.form} ({f.reason})" for f in self.forms]
+                + [c.describe() for c in self.checks])
 
 
 # ---------------------------------------------------------------------------- planning
@@ -205,33 +238,78 @@ def pointwise_rel_diff(approx: ArrayLike, ref: ArrayLike) -> float:
 
 
 def eval_forms(forms: tuple[ChannelForm, ...], x: ArrayLike) -> Array:
-    """Evaluate the planned forms in numpy, in the same order the generated code does."""
-    from numpy.polynomial import chebyshev, legendre, polynomial
-
-    val = {"power": polynomial.polyval, "legendre": legendre.legval,
-           "chebyshev": chebyshev.chebval}
+    """Values of the planned forms in float64, by the same operations in the same order as
+    the generated C and Python (one IEEE operation at a time, no BLAS, no numpy series
+    helper), so that they equal what the exported code computes bit for bit."""
     xa = np.asarray(x, dtype=float)
     if xa.ndim == 1:
         xa = xa[:, None]
     cols = []
     for f in forms:
         t = xa if f.scale is None or f.shift is None else xa * f.scale + f.shift
-        if f.form == "recurrence":
-            with np.errstate(divide="ignore", invalid="ignore"):
+        with np.errstate(all="ignore"):
+            if f.form == "recurrence":
                 cols.append(f.p_rec.evaluate(t, f.p_coef, window=True)
                             / f.q_rec.evaluate(t, f.q_coef, window=True))
-            continue
-        fn = val[f.family]
-
-        def ev(T: Array, t: Array = t, fn: Any = fn) -> Array:
-            c = fn(t[:, 0], T)
-            for k in range(1, T.ndim):
-                c = fn(t[:, k], c, tensor=False)
-            return c
-
-        with np.errstate(divide="ignore", invalid="ignore"):
-            cols.append(ev(f.P) / ev(f.Q))
+                continue
+            cols.append(_tensor_series(f.P, f.family, t) / _tensor_series(f.Q, f.family, t))
     return np.stack(cols, axis=1)
+
+
+def _tensor_series(T: Array, family: str, t: Array) -> Array:
+    """The generated ``_poly_function``: the last axis first, row o of the flattened
+    tensor summed as a series in that coordinate into w[o]."""
+    npts = t.shape[0]
+    w = np.broadcast_to(np.ravel(T), (npts, T.size))
+    for k in range(T.ndim - 1, -1, -1):
+        kk = int(T.shape[k])
+        w = _series(np.reshape(w, (npts, -1, kk)), family, t[:, k, None])
+    return np.asarray(w[:, 0])
+
+
+def _series(a: Array, family: str, v: Array) -> Array:
+    """The generated ``_series_lines``: a[..., i] summed as a series in v, per row."""
+    n = a.shape[-1]
+    if family == "power":
+        s = np.zeros(a.shape[:-1])
+        for i in range(n - 1, -1, -1):
+            s = s * v + a[..., i]
+        return s
+    b1 = np.zeros(a.shape[:-1])
+    b2 = np.zeros(a.shape[:-1])
+    for i in range(n - 1, 0, -1):
+        if family == "legendre":
+            alpha, beta = (2.0 * i + 1.0) / (i + 1.0), (i + 1.0) / (i + 2.0)
+        else:
+            alpha, beta = 2.0, 1.0
+        b0 = a[..., i] + alpha * v * b1 - beta * b2
+        b2 = b1
+        b1 = b0
+    tail = 0.5 * b2 if family == "legendre" else b2
+    return a[..., 0] + v * b1 - tail
+
+
+def check_forms(forms: tuple[ChannelForm, ...], seg: Any, source: str) -> tuple[FormCheck, ...]:
+    """Every segment of ``seg`` checked with the exported formula (:func:`eval_forms`),
+    not with the fit's own evaluation: the verdict holds for the code the user runs."""
+    if seg.n_channels != len(forms):
+        raise InputError(f"{source} has {seg.n_channels} channel(s) but the fit has "
+                         f"{len(forms)}")
+    vals = np.concatenate([eval_forms(forms, seg.x[s:s + _CHECK_BLOCK])
+                           for s in range(0, seg.n_points, _CHECK_BLOCK)])
+    out = []
+    for j, f in enumerate(forms):
+        v = vals[:, j]
+        with np.errstate(invalid="ignore"):
+            signed = np.maximum(seg.lo[:, j] - v, v - seg.hi[:, j])
+        signed = np.where(np.isfinite(v), signed, np.inf)
+        worst = float(np.max(signed)) if signed.size else 0.0
+        out.append(FormCheck(f.name, int(np.sum(signed <= 0)), int(signed.size),
+                             max(worst, 0.0), -worst, source))
+    return tuple(out)
+
+
+_CHECK_BLOCK = 2048  # points per block of the check (n-D tensors broadcast per point)
 
 
 # ---------------------------------------------------------------------------- languages
@@ -358,13 +436,15 @@ def _recurrence_function(lang: _Lang, fname: str, arr: str, basis: Any,
                 f"def {fname}(t):",
                 f"    f = [0.0] * {k}",
                 f"    f[0] = 1.0 / {arr}_H[0]",
+                f"    s = {arr}_C[0] * f[0]",
                 f"    for i in range(1, {k}):",
                 "        off = i * (i + 1) // 2",
                 f"        v = t[{arr}_DIM[i]] * f[{arr}_PARENT[i]]",
                 "        for j in range(i):",
                 f"            v -= {arr}_H[off + j] * f[j]",
                 f"        f[i] = v / {arr}_H[off + i]",
-                f"    return sum(c * v for c, v in zip({arr}_C, f))"]
+                f"        s = s + {arr}_C[i] * f[i]",
+                "    return s"]
         return out
     ints = ", ".join(str(v) for v in par)
     intd = ", ".join(str(v) for v in dims)
@@ -683,6 +763,7 @@ def export_source(
     saved: SavedFit, lang: str, *, parametrization: str | None = None, form: str = "auto",
     points: ArrayLike | None = None, prefix: str = "ratfit", source: str = "",
     rtol: float = HORNER_RTOL, cosine_weighted: bool = False, fold_phi_d: bool = False,
+    segments: Any = None, segments_source: str = "the data",
 ) -> ExportResult:
     """Source text of ``saved`` in ``lang`` (c, glsl, python).
 
@@ -690,6 +771,11 @@ def export_source(
     so expect single-precision rounding there. ``cosine_weighted``: the fit models
     f cos(theta_l), so *_brdf divides by L.z; ``fold_phi_d``: phi_d is folded into
     [0, pi) before evaluation (MERL tables), as :class:`ratfit.brdf.fitter.BRDFFit` does.
+
+    ``segments`` (:class:`~ratfit.core.segments.Segments` in the fit's variables): every
+    one is checked with the exported formula as the C/Python code evaluates it
+    (:func:`check_forms`); if one is missed the export is refused with
+    :class:`UnverifiedExport`. The header says which check was made.
     """
     from ratfit._version import __version__
 
@@ -711,6 +797,17 @@ def export_source(
             raise InputError(f"parametrization {pname} has {pdim} coordinates but the fit has "
                              f"{saved.space.dim} input dimension(s)")
     forms = plan_forms(saved, form=form, points=points, rtol=rtol)
+    checks: tuple[FormCheck, ...] = ()
+    if segments is not None and lang_key != "glsl":
+        checks = check_forms(forms, segments, segments_source)
+        bad = [c for c in checks if not c.ok]
+        # An edited or legacy file exported with --trust-edited is NOT VERIFIED anyway (the
+        # header says so, with the check's result); a sealed verified fit is refused.
+        if bad and getattr(saved, "integrity", "sealed") == "sealed":
+            raise UnverifiedExport(
+                "; ".join(c.describe() for c in bad) + f" (evaluated as the exported {lang_key} "
+                "code evaluates it, float64): export refused, no file written; try "
+                "another --form or a fit with more margin")
     lg = {"c": _C, "glsl": _GLSL, "python": _PY}[lang_key]
     d, k = saved.space.dim, len(forms)
     cm = lg.comment
@@ -722,6 +819,7 @@ def export_source(
     ]
     for f in forms:
         head.append(f"{cm} channel {f.name!r}: {f.form} ({f.reason}).")
+    head += [f"{cm} {line}" for line in _exactness_lines(lang_key, forms, checks)]
     if pname:
         head.append(f"{cm} Input coordinates: {pname}, computed from directions by the "
                     "coords function.")
@@ -735,7 +833,7 @@ def export_source(
                   f"RATFIT_DIM = {d}", f"RATFIT_NCHANNELS = {k}",
                   f"CHANNELS = {ascii(tuple(f.name for f in forms))}", ""]
     elif lang_key == "c":
-        lines += ["#include <math.h>", "", f"#define RATFIT_DIM {d}",
+        lines += ["#include <math.h>", "", *_C_EXACT, "", f"#define RATFIT_DIM {d}",
                   f"#define RATFIT_NCHANNELS {k}", ""]
     else:
         lines += [f"#define RATFIT_DIM {d}", f"#define RATFIT_NCHANNELS {k}", ""]
@@ -794,7 +892,46 @@ def export_source(
                               np.asarray(saved.space.domain, dtype=float))
     del r
     text = "\n".join(lines).rstrip() + "\n"
-    return ExportResult(text, lang_key, forms, pname)
+    return ExportResult(text, lang_key, forms, pname, checks)
+
+
+# The checked values are those of IEEE double arithmetic performed as written: a
+# compiler that fuses a * b + c into one FMA, or reorders (-ffast-math), rounds
+# differently, and the recurrence can amplify that difference by ~1e12.
+_C_EXACT = [
+    "/* The operations below are the ones ratfit checked, in this order: build without",
+    "   -ffast-math and without FMA contraction (gcc/clang: -ffp-contract=off). */",
+    "#if defined(__FAST_MATH__) && !defined(RATFIT_ALLOW_FAST_MATH)",
+    "#error \"ratfit export: -ffast-math reorders the checked arithmetic (define "
+    "RATFIT_ALLOW_FAST_MATH to build an unchecked variant)\"",
+    "#endif",
+    "#if defined(__clang__)",
+    "#pragma STDC FP_CONTRACT OFF",
+    "#elif defined(__GNUC__)",
+    "#pragma GCC optimize (\"fp-contract=off\")",
+    "#endif",
+]
+
+
+def _exactness_lines(lang: str, forms: tuple[ChannelForm, ...],
+                     checks: tuple[FormCheck, ...]) -> list[str]:
+    """What the header may claim about the exported formula itself."""
+    if lang == "glsl":
+        return ["NOT CHECKED in this form: GLSL evaluates in float precision (and GPUs "
+                "fuse multiply-adds), so values differ from the verified float64 ones; "
+                "the C and Python exports are checked."]
+    out = []
+    for c in checks:
+        out.append(("Checked: " if c.ok else "NOT VERIFIED: ") + c.describe() +
+                   " (float64, this code's operations in this order).")
+    if not checks:
+        same = [f.name for f in forms if f.form == "recurrence"]
+        if same:
+            out.append(f"Channel(s) {', '.join(same)}: the same operations in the same order "
+                       "as ratfit's own evaluation (equal to ratfit eval bit for bit).")
+        out.append("Segments NOT re-checked with this formula (no data at export; "
+                   "`ratfit export --data` checks every one).")
+    return out
 
 
 def _validity(saved: SavedFit) -> str:
@@ -836,13 +973,66 @@ def load_any_fit(path: str | os.PathLike[str]) -> tuple[SavedFit, Any]:
 def export_fit(
     fit_path: str | os.PathLike[str], lang: str, output: str | os.PathLike[str], *,
     form: str = "auto", prefix: str = "ratfit", points: ArrayLike | None = None,
+    data: str | os.PathLike[str] | None = None,
 ) -> ExportResult:
-    """Read a fit file, generate its source and write it atomically to ``output``."""
+    """Read a fit file, generate its source and write it atomically to ``output``.
+
+    The segments are checked with the exported formula on ``data`` (a data file, read
+    with the widths the fit file records), else on the fit's own input file when it is
+    still there unchanged (same sha256); a missed segment raises
+    :class:`UnverifiedExport` and nothing is written."""
     saved, bf = load_any_fit(fit_path)
+    seg, src = _export_segments(saved, bf, fit_path, data)
     res = export_source(saved, lang, parametrization=None if bf is None else bf.parametrization,
                         cosine_weighted=bool(getattr(bf, "cosine_weighted", False)),
                         fold_phi_d=bool(getattr(bf, "fold_phi_d", False)), form=form,
-                        points=points, prefix=prefix, source=Path(fit_path).name)
+                        points=points, prefix=prefix, source=Path(fit_path).name,
+                        segments=seg, segments_source=src)
     with atomic_open(output, "w") as fh:
         fh.write(res.text)
     return res
+
+
+def _export_segments(saved: SavedFit, bf: Any, fit_path: str | os.PathLike[str],
+                     data: str | os.PathLike[str] | None) -> tuple[Any, str]:
+    """(segments, where from) for the export's check; (None, "") when there is no data."""
+    from ratfit.io.fitfile import file_sha256
+
+    if data is None:
+        prov = saved.provenance if isinstance(saved.provenance, dict) else {}
+        path, sha = prov.get("input"), prov.get("input_sha256")
+        if bf is not None or not isinstance(path, str) or not isinstance(sha, str):
+            return None, ""
+        try:
+            if not Path(path).is_file() or file_sha256(path) != sha:
+                return None, ""
+            seg = _data_segments(saved, bf, path)
+        except (OSError, RatfitError):
+            return None, ""
+        return (None, "") if seg is None else (seg, f"the fit's input {Path(path).name}")
+    seg = _data_segments(saved, bf, data)
+    if seg is None:
+        raise InputError(f"{data}: cannot rebuild the fit's segments on this data (the fit "
+                         "file records no widths and the file has no bounds)")
+    return seg, Path(data).name
+
+
+def _data_segments(saved: SavedFit, bf: Any, path: str | os.PathLike[str]) -> Any:
+    """The segments the fit file's widths give on a data file; None when they cannot be
+    rebuilt."""
+    if bf is not None:
+        raise InputError("export --data checks fits from `ratfit fit`; a BRDF fit's segments "
+                         "live in its coordinates after dropped columns and symmetry images "
+                         "(not checked in the exported form yet: the header says so)")
+    from ratfit.io.data import read_data
+    from ratfit.io.fitfile import recorded_segments
+
+    ds = read_data(path)
+    if ds.dim != saved.space.dim:
+        raise InputError(f"{path} has {ds.dim} input dimension(s) but the fit has "
+                         f"{saved.space.dim}")
+    seg = recorded_segments(saved, ds)
+    if seg is not None and seg.n_channels != len(saved.channels):
+        raise InputError(f"{path} has {seg.n_channels} channel(s) but the fit has "
+                         f"{len(saved.channels)}")
+    return seg

@@ -616,6 +616,7 @@ _PROVENANCE_FIELDS: dict[str, tuple[Any, str]] = {
     "cdf": (lambda v: isinstance(v, dict), "an object"),
     "batch": (lambda v: isinstance(v, dict), "an object"),
     "command": (_list_of(_is_str), "a list of strings"),
+    "between": (lambda v: isinstance(v, dict), "an object"),
 }
 _DIAGNOSTICS_FIELDS: dict[str, tuple[Any, str]] = {
     "verified": (_is_bool, "true or false"),
