@@ -7,6 +7,10 @@ in a chosen parametrization, going through the Cartesian (L, V) pivot of
 :mod:`ratfit.params`. Errors are :class:`FileFormatError` (not the format it
 claims, truncated, wrong header) or :class:`InputError` (values that cannot be
 used); writers are atomic.
+
+MERL tables follow MERL's reference reader (BRDFRead.cpp): indices are rounded
+down, so cell (i, j, k) holds the BRDF at its lower edge, theta_h = (i/90)^2 pi/2,
+theta_d = j/90 pi/2, phi_d = k/180 pi (:func:`merl_coords`).
 """
 
 from __future__ import annotations
@@ -66,14 +70,26 @@ class BRDFSamples:
 
 
 # --------------------------------------------------------------------------- MERL
+# ratfit follows the convention of MERL's own reader (BRDFRead.cpp, lookup_brdf_val):
+# a direction pair's cell index is its coordinate rounded DOWN, so the value stored in
+# cell (i, j, k) is the BRDF at the cell's lower edge,
+#     theta_h = (i/90)^2 pi/2,  theta_d = j/90 pi/2,  phi_d = k/180 pi,
+# not at its centre. Reading, writing, looking up and fitting all use these points.
 MERL_SHAPE = (90, 90, 180)  # theta_h, theta_d, phi_d
 MERL_SCALE = (1.0 / 1500.0, 1.15 / 1500.0, 1.66 / 1500.0)  # R, G, B
 _MERL_HEADER = 12
+# index rounding slack: the stored point of cell i maps back to i although
+# sqrt((i/90)^2) * 90 may come out a few ulps below i
+_MERL_INDEX_SLACK = 1e-9
 
 
 @dataclass(frozen=True, eq=False)
 class MERLData:
-    """A MERL table: ``rgb`` (90, 90, 180, 3) BRDF values (scale applied), NaN = missing."""
+    """A MERL table: ``rgb`` (90, 90, 180, 3) BRDF values (scale applied), NaN = missing.
+
+    Cell (i, j, k) holds the BRDF at MERL's sample point for that cell, its lower
+    edge (:func:`merl_coords`), as MERL's reference reader assumes.
+    """
 
     rgb: Array
     source: str = "merl"
@@ -84,48 +100,55 @@ class MERLData:
         return np.all(np.isfinite(self.rgb), axis=-1)
 
     def samples(self) -> BRDFSamples:
-        """Valid cells at their bin centres, in RUSIN_TH_TD_PD (phi_d in [0, pi))."""
+        """Valid cells at MERL's sample points (lower cell edges), in RUSIN_TH_TD_PD
+        (phi_d in [0, pi))."""
         ok = self.valid
         coords = merl_coords()[ok.ravel()]
         return BRDFSamples(
             "RUSIN_TH_TD_PD", coords, self.rgb[ok], ("R", "G", "B"),
             {"format": "merl", "source": self.source, "fold_phi_d": True,
-             "param_out": "INV_STERADIAN", "missing": int((~ok).sum())},
+             "param_out": "INV_STERADIAN", "missing": int((~ok).sum()),
+             "merl_convention": "lower cell edge (MERL BRDFRead.cpp)"},
         )
 
     def lookup(self, L: ArrayLike, V: ArrayLike) -> Array:
-        """Nearest-cell values (N, 3) at directions, with MERL's index maps."""
+        """Cell values (N, 3) at directions, with MERL's index maps (rounded down)."""
         th, td, pd = get_parametrization("RUSIN_TH_TD_PD").from_dirs(L, V).T
         i, j, k = merl_indices(th, td, pd)
         return self.rgb[i, j, k]
 
 
 def merl_indices(th: ArrayLike, td: ArrayLike, pd: ArrayLike) -> tuple[NDArray, NDArray, NDArray]:
-    """MERL's cells: theta_h square-root mapped, theta_d linear, phi_d folded into [0, pi)."""
+    """MERL's cell indices, as its reference reader computes them: theta_h square-root
+    mapped, theta_d linear, phi_d folded into [0, pi), each rounded down and clipped."""
     th, td, pd = (np.asarray(a, dtype=float) for a in (th, td, pd))
-    i = np.floor(np.sqrt(np.clip(th, 0.0, None) / (0.5 * np.pi)) * 90.0).astype(int)
-    j = np.floor(td / (0.5 * np.pi) * 90.0).astype(int)
-    k = np.floor(np.mod(pd, np.pi) / np.pi * 180.0).astype(int)
+    eps = _MERL_INDEX_SLACK
+    i = np.floor(np.sqrt(np.clip(th, 0.0, None) / (0.5 * np.pi)) * 90.0 + eps).astype(int)
+    j = np.floor(td / (0.5 * np.pi) * 90.0 + eps).astype(int)
+    k = np.floor(np.mod(pd, np.pi) / np.pi * 180.0 + eps).astype(int)
     return np.clip(i, 0, 89), np.clip(j, 0, 89), np.clip(k, 0, 179)
 
 
 def merl_coords() -> Array:
-    """Bin centres (90*90*180, 3) of the MERL table in RUSIN_TH_TD_PD, table order.
+    """MERL's sample points (90*90*180, 3) in RUSIN_TH_TD_PD, table order.
 
-    theta_h cell i covers sqrt(theta_h / (pi/2)) in [i, i+1)/90; its centre is
-    taken at ((i + 0.5)/90)^2 pi/2, so the index map sends it back to cell i.
+    The point of cell (i, j, k) is its lower edge, theta_h = (i/90)^2 pi/2,
+    theta_d = j/90 pi/2, phi_d = k/180 pi: MERL's reader rounds indices down
+    (BRDFRead.cpp), so this is where each stored value belongs, and
+    :func:`merl_indices` sends it back to its own cell.
     """
-    th = ((np.arange(90) + 0.5) / 90.0) ** 2 * (0.5 * np.pi)
-    td = (np.arange(90) + 0.5) / 90.0 * (0.5 * np.pi)
-    pd = (np.arange(180) + 0.5) / 180.0 * np.pi
+    th = (np.arange(90) / 90.0) ** 2 * (0.5 * np.pi)
+    td = np.arange(90) / 90.0 * (0.5 * np.pi)
+    pd = np.arange(180) / 180.0 * np.pi
     g = np.meshgrid(th, td, pd, indexing="ij")
     return np.stack([a.ravel() for a in g], axis=1)
 
 
 def merl_from_function(f: Callable[[Array, Array], ArrayLike], *, chunk: int = 200_000) -> Array:
-    """A (90, 90, 180, 3) table of ``f(L, V) -> (N, 3)`` at the bin centres.
+    """A (90, 90, 180, 3) table of ``f(L, V) -> (N, 3)`` at MERL's sample points
+    (:func:`merl_coords`, the lower cell edges).
 
-    Cells whose centre puts L or V below the horizon are missing (NaN), as in
+    Cells whose point puts L or V below the horizon are missing (NaN), as in
     measured MERL files.
     """
     from ratfit.brdf.parametrizations import _from_half_diff

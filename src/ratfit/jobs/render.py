@@ -124,6 +124,9 @@ def render_fit(request: RenderRequest) -> RenderReport:
     req, clock = request, Clock()
     mat = material_of(req.fit)  # a rational fit, or an analytic model fitted to data
     ref = DataMaterial(req.data) if req.data is not None else None
+    if ref is not None and ref.below_horizon:
+        req.say(f"note: {ref.below_horizon} of the data's samples put a direction below the "
+                "horizon; left out of the data render")
     if mat.negative_fraction > 0:
         req.say(f"note: the fit is negative on {100 * mat.negative_fraction:.1f}% of a "
                 "hemisphere grid of direction pairs; clamped to 0 for rendering")

@@ -89,6 +89,18 @@ class FitMaterial:
         return np.where(np.isfinite(v), np.maximum(v, 0.0), 0.0)
 
 
+def _dirs_of(p, coords: Array) -> tuple[Array, Array, NDArray[np.bool_]]:
+    """Directions of data coordinates and which rows are a pair above the horizon
+    (the others hold NaN); :meth:`Parametrization.to_dirs` refuses the whole file."""
+    c = np.asarray(coords, dtype=float)
+    with np.errstate(invalid="ignore"):
+        L, V = p._to(c)
+    ok = np.isfinite(L).all(axis=1) & np.isfinite(V).all(axis=1)
+    ok &= (L[:, 2] >= -1e-12) & (V[:, 2] >= -1e-12)
+    L, V = np.where(ok[:, None], L, np.nan), np.where(ok[:, None], V, np.nan)
+    return L, V, ok
+
+
 class DataMaterial:
     """Measured BRDF samples, interpolated for rendering.
 
@@ -116,9 +128,12 @@ class DataMaterial:
         if p.invariant not in ("full", "isotropic"):
             raise InputError(f"{path}: data in {p.name} does not fix both directions up to a "
                              "rotation; it cannot be rendered as measured")
-        L, V = p.to_dirs(ds.x)
+        L, V, above = _dirs_of(p, ds.x)
         y = _rgb(ds.y, f"{path}")
-        keep = np.all(np.isfinite(y), axis=1)
+        #: samples whose coordinates put L or V below the horizon: a renderer never asks
+        #: for such a pair, so they are left out (counted, not refused)
+        self.below_horizon = int((~above).sum())
+        keep = above & np.all(np.isfinite(y), axis=1)
         L, V, y = L[keep], V[keep], np.maximum(y[keep], 0.0)
         if len(y) < 4:
             raise InputError(f"{path}: fewer than 4 finite samples to interpolate")
