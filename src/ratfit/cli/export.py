@@ -13,6 +13,16 @@ from ratfit.errors import InputError
 
 _FILE = click.Path(dir_okay=False, path_type=Path)
 
+scale_option = click.option(
+    "--scale", type=click.Choice(["auto", "linear", "log"]), default="auto", show_default=True,
+    help="Value axes: auto draws on a log axis when the positive values span more than two "
+         "decades (the caption says which was chosen).")
+rel_floor_option = click.option(
+    "--rel-floor", type=click.FloatRange(0.0, 1.0, min_open=True, max_open=True),
+    default=1e-3, show_default=True,
+    help="Relative errors are |fit - data| / max(|data|, floor), floor = this x the "
+         "channel's largest |data|, so near-zero samples do not dominate.")
+
 
 @main.command("export")
 @trust_edited_option
@@ -58,8 +68,11 @@ def export_cmd(fit_path: Path, lang: str, output: Path, form: str, prefix: str,
 @trust_edited_option
 @click.argument("fit_path", metavar="FIT.json", type=_FILE)
 @click.option("--data", "data_path", type=_FILE, help="Data file to show with the fit.")
-@click.option("--kind", type=click.Choice(["slice", "polar", "sphere", "error"]),
-              default="slice", show_default=True)
+@click.option("--kind", type=click.Choice(["slice", "polar", "sphere", "error", "relerror"]),
+              default="slice", show_default=True,
+              help="slice: fit and data along --dim with the signed error; error: signed "
+                   "error at every sample; relerror: |fit - data| / max(|data|, floor); "
+                   "polar: BRDF in the plane of incidence; sphere: rendered spheres.")
 @click.option("-o", "--output", type=_FILE, required=True, help="PNG file to write.")
 @click.option("--channel", type=int, default=0, show_default=True)
 @click.option("--dim", type=int, default=0, show_default=True, help="Slice coordinate.")
@@ -68,8 +81,11 @@ def export_cmd(fit_path: Path, lang: str, output: Path, form: str, prefix: str,
                    "e.g. lambert+ggx. Default for sphere: lambert+ggx.")
 @click.option("--size", type=click.IntRange(16, 4096), default=128, show_default=True,
               help="Sphere image size.")
+@scale_option
+@rel_floor_option
 def plot_cmd(fit_path: Path, data_path: Path | None, kind: str, output: Path, channel: int,
-             dim: int, models: tuple[str, ...], size: int) -> None:
+             dim: int, models: tuple[str, ...], size: int, scale: str,
+             rel_floor: float) -> None:
     """Pictures of a fit: slice (fit, data, signed error), error, polar or sphere."""
     from ratfit.brdf.analytic_models import Model
     from ratfit.viz.report import LoadedFit, load_data_for
@@ -82,25 +98,29 @@ def plot_cmd(fit_path: Path, data_path: Path | None, kind: str, output: Path, ch
     if not 0 <= channel < len(fit.saved.channels):
         raise InputError(f"channel {channel} out of range: the fit has "
                          f"{len(fit.saved.channels)} channel(s)")
+    from ratfit.viz.pictures import PlotStyle
+    from ratfit.viz.report import report_style
+
+    style = report_style(fit, PlotStyle(scale=scale, rel_floor=rel_floor))
     ds = load_data_for(fit, data_path) if data_path is not None else None
-    if kind in ("slice", "error"):
-        _plot_values(fit, ds, data_path, kind, output, channel, dim)
+    if kind in ("slice", "error", "relerror"):
+        _plot_values(fit, ds, data_path, kind, output, channel, dim, style)
     else:
         if not fit.is_brdf:
             raise InputError(f"{fit_path}: --kind {kind} needs a BRDF fit (a fit file that "
                              "records its parametrization, from `ratfit brdf fit`)")
-        _plot_brdf(fit, ds, kind, output, channel, models, size)
+        _plot_brdf(fit, ds, kind, output, channel, models, size, style)
     click.echo(f"wrote {output}")
 
 
 def _plot_values(fit: Any, ds: Any, data_path: Path | None, kind: str, output: Path,
-                 channel: int, dim: int) -> None:
+                 channel: int, dim: int, style: Any) -> None:
     """A slice of the fit along one input (with the data), or its error at the data."""
     from ratfit.viz import pictures as pic
     from ratfit.viz.report import coordinate_names, segments_of
 
-    if kind == "error" and ds is None:
-        raise click.UsageError("--kind error needs --data")
+    if kind in ("error", "relerror") and ds is None:
+        raise click.UsageError(f"--kind {kind} needs --data")
     if not 0 <= dim < fit.saved.space.dim:
         raise InputError(f"--dim {dim} out of range: the fit has "
                          f"{fit.saved.space.dim} input dimension(s)")
@@ -110,16 +130,19 @@ def _plot_values(fit: Any, ds: Any, data_path: Path | None, kind: str, output: P
     if kind == "slice":
         pic.plot_slice(fit.saved, output, x=None if ds is None else ds.x,
                        y=None if ds is None else ds.y, lo=lo, hi=hi, dim=dim,
-                       channel=channel, names=names)
-    else:
+                       channel=channel, names=names, style=style)
+    elif kind == "error":
         pic.plot_error(fit.saved, output, ds.x, ds.y, lo=lo, hi=hi, dim=dim,
-                       channel=channel, names=names)
+                       channel=channel, names=names, style=style)
+    else:
+        pic.plot_relative_error(fit.saved, output, ds.x, ds.y, lo=lo, hi=hi, dim=dim,
+                                channel=channel, names=names, style=style)
     if seg is not None and data_path is not None:
         _say_recheck(fit, seg, data_path)
 
 
 def _plot_brdf(fit: Any, ds: Any, kind: str, output: Path, channel: int,
-               models: tuple[str, ...], size: int) -> None:
+               models: tuple[str, ...], size: int, style: Any) -> None:
     """Polar lobes or rendered spheres of a BRDF fit (and the data, and models)."""
     from ratfit.viz import pictures as pic
     from ratfit.viz.report import cos_factor, model_fit_for
@@ -131,14 +154,14 @@ def _plot_brdf(fit: Any, ds: Any, kind: str, output: Path, channel: int,
         for spec in models or (("lambert+ggx",) if kind == "sphere" else ()):
             mf = model_fit_for(fit.param, ds, spec)
             funcs[mf.name] = mf.eval_dirs
+    data_fn = None if ds is None else pic.DataBRDF(
+        ds.x, ds.y, fit.param, cos_factor=cf, fold_phi_d=bool(ds.meta.get("fold_phi_d")))
     if kind == "polar":
-        pic.plot_polar(funcs, output, channel=channel)
+        pic.plot_polar(funcs, output, channel=channel, data=data_fn, scale=style.scale)
         return
     imgs = {}
-    if ds is not None:
-        imgs["data"] = pic.render_sphere(
-            pic.DataBRDF(ds.x, ds.y, fit.param, cos_factor=cf,
-                         fold_phi_d=bool(ds.meta.get("fold_phi_d"))), size=size)
+    if data_fn is not None:
+        imgs["data"] = pic.render_sphere(data_fn, size=size)
     for name, f in funcs.items():
         imgs[name] = pic.render_sphere(f, size=size)
     pic.plot_spheres(imgs, output)
@@ -162,15 +185,19 @@ def _say_recheck(fit, seg, data_path: Path) -> None:
                 help="Folder for index.html and its pictures.")
 @click.option("--model", "models", multiple=True,
               help="Analytic model(s) to compare with (BRDF fits; default lambert+ggx).")
+@scale_option
+@rel_floor_option
 def report_cmd(fit_path: Path, data_path: Path | None, outdir: Path,
-               models: tuple[str, ...]) -> None:
+               models: tuple[str, ...], scale: str, rel_floor: float) -> None:
     """One static HTML page with the metrics table and the pictures (opens offline)."""
     from ratfit.brdf.analytic_models import Model
+    from ratfit.viz.pictures import PlotStyle
     from ratfit.viz.report import write_report
 
     for spec in models:
         Model(spec)
-    res = write_report(fit_path, data_path, outdir, models=models or ("lambert+ggx",))
+    res = write_report(fit_path, data_path, outdir, models=models or ("lambert+ggx",),
+                       style=PlotStyle(scale=scale, rel_floor=rel_floor))
     if res.albedo is not None and res.albedo["flagged"]:
         click.echo(f"warning: the fit reflects more than it receives (max albedo "
                    f"{res.albedo['max_albedo']:.3g})", err=True)

@@ -19,6 +19,7 @@ is drawn grey. :class:`DataBRDF` turns samples into such a callable and
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -35,7 +36,9 @@ __all__ = [
     "fit_brdf_function",
     "plot_brdf_slices",
     "plot_error",
+    "PlotStyle",
     "plot_polar",
+    "plot_relative_error",
     "plot_slice",
     "plot_spheres",
     "render_sphere",
@@ -194,6 +197,90 @@ class DataBRDF:
         return vals
 
 
+# ---------------------------------------------------------------------------- style
+SCALES = ("auto", "linear", "log")
+# "auto" draws values on a log axis when their positive part spans more than this
+# ratio (two decades): a specular peak or an exponential decay then stays readable
+AUTO_LOG_SPAN = 100.0
+# relative errors divide by max(|y|, floor) with floor = REL_FLOOR x the channel's
+# largest |y|: near-zero data (a blue paint's red channel) would otherwise turn a tiny
+# absolute error into a relative one of thousands
+REL_FLOOR = 1e-3
+
+
+@dataclass(frozen=True)
+class PlotStyle:
+    """How a picture labels and scales what it shows.
+
+    ``value_label``: the y axis (with its unit); ``coord_unit``: the unit of
+    coordinates that are not angles (angles, coordinates named theta_* or phi_*,
+    are stored in radians and always drawn in degrees); ``scale``: "linear", "log"
+    or "auto" (log when the positive values span more than :data:`AUTO_LOG_SPAN`);
+    ``rel_floor``: relative errors are |r - y| / max(|y|, rel_floor x max |y|).
+    """
+
+    value_label: str = "y (file units)"
+    coord_unit: str = "file units"
+    scale: str = "auto"
+    rel_floor: float = REL_FLOOR
+
+    def __post_init__(self) -> None:
+        if self.scale not in SCALES:
+            raise InputError(f"scale must be one of {', '.join(SCALES)}, got {self.scale!r}")
+        if not (np.isfinite(self.rel_floor) and 0.0 < self.rel_floor < 1.0):
+            raise InputError(f"the relative-error floor must be in (0, 1), got {self.rel_floor!r}")
+
+
+DEFAULT_STYLE = PlotStyle()
+BRDF_STYLE = PlotStyle(value_label="BRDF (1/sr)", coord_unit="unitless")
+
+
+def is_angle(name: str) -> bool:
+    """Coordinates named theta_*, phi_* or delta_phi are angles in radians."""
+    n = str(name).lower()
+    return n.startswith(("theta", "phi", "delta_phi"))
+
+
+def coord_axis(name: str, style: PlotStyle) -> tuple[float, str]:
+    """(factor from stored to drawn values, axis label with unit) of a coordinate."""
+    if is_angle(name):
+        return 180.0 / np.pi, f"{plain(name)} (deg)"
+    return 1.0, f"{plain(name)} ({plain(style.coord_unit)})"
+
+
+def resolve_scale(values: ArrayLike, scale: str) -> str:
+    """The scale "auto" stands for on these values: "log" when their positive part
+    spans more than :data:`AUTO_LOG_SPAN`, else "linear"."""
+    if scale != "auto":
+        return scale
+    v = np.asarray(values, dtype=float)
+    pos = v[np.isfinite(v) & (v > 0)]
+    if pos.size < 2:
+        return "linear"
+    return "log" if float(pos.max()) > AUTO_LOG_SPAN * float(pos.min()) else "linear"
+
+
+def rel_floor_value(y: ArrayLike, rel_floor: float = REL_FLOOR) -> float:
+    """The absolute floor of relative errors: ``rel_floor`` x max |y| (1 if y is all 0)."""
+    a = np.abs(np.asarray(y, dtype=float))
+    a = a[np.isfinite(a)]
+    top = float(a.max()) if a.size else 0.0
+    return rel_floor * top if top > 0 else 1.0
+
+
+def relative_error(pred: ArrayLike, y: ArrayLike, floor: float) -> Array:
+    """|pred - y| / max(|y|, floor), elementwise."""
+    p = np.asarray(pred, dtype=float)
+    t = np.asarray(y, dtype=float)
+    return np.abs(p - t) / np.maximum(np.abs(t), floor)
+
+
+def _log_safe(v: Array) -> Array:
+    """Values for a log axis: those <= 0 become NaN (not drawn)."""
+    v = np.asarray(v, dtype=float)
+    return np.where(v > 0, v, np.nan)
+
+
 # ---------------------------------------------------------------------------- 1-D slices
 # A slice shows data "on the line" when at least this many samples share the other
 # coordinates exactly; scattered data (a goniometer's Cornell samples in the
@@ -239,10 +326,19 @@ def plot_slice(saved: SavedFit, path: str | Path, *, x: ArrayLike | None = None,
                y: ArrayLike | None = None, lo: ArrayLike | None = None,
                hi: ArrayLike | None = None, dim: int = 0, channel: int = 0,
                at: ArrayLike | None = None, title: str | None = None,
-               names: Sequence[str] | None = None) -> Path:
+               names: Sequence[str] | None = None, style: PlotStyle = PlotStyle()) -> Path:
     """Fit vs data along coordinate ``dim`` and the signed error (r - y) with the band.
 
-    ``names``: the coordinates' names (a parametrization's, or the data's columns)."""
+    ``names``: the coordinates' names (a parametrization's, or the data's columns);
+    ``style``: labels, units and the value axis's scale (see :class:`PlotStyle`)."""
+    return _slice(saved, path, x, y, lo, hi, dim, channel, at, title, names, style)[0]
+
+
+def _slice(saved: SavedFit, path: str | Path, x: ArrayLike | None, y: ArrayLike | None,
+           lo: ArrayLike | None, hi: ArrayLike | None, dim: int, channel: int,
+           at: ArrayLike | None, title: str | None, names: Sequence[str] | None,
+           style: PlotStyle) -> tuple[Path, str]:
+    """:func:`plot_slice`, also returning the value scale drawn ("linear" or "log")."""
     plt = _plt()
     d = saved.space.dim
     if not 0 <= dim < d:
@@ -258,49 +354,85 @@ def plot_slice(saved: SavedFit, path: str | Path, *, x: ArrayLike | None = None,
     else:
         rows = None
         at_pt = dom.mean(axis=1) if at_pt is None else at_pt
+    cnames = _names(names, d)
+    factor, xlabel = coord_axis(cnames[dim], style)
     grid = np.linspace(dom[dim, 0], dom[dim, 1], 600)
     pts = np.tile(at_pt, (grid.size, 1))
     pts[:, dim] = grid
     rf = saved.channels[channel].rational
+    curve = np.asarray(rf(pts), dtype=float).ravel()
     fig, axes = plt.subplots(2, 1, figsize=(8, 6), sharex=True,
                              gridspec_kw={"height_ratios": [3, 2]})
-    axes[0].plot(grid, rf(pts), lw=1.3, color="C1", label="rational fit")
+    shown = [curve]
+    hidden = 0
+    ya_rows = None
     if xa is not None and y is not None and rows is not None:
         ya = np.asarray(y, dtype=float).reshape(xa.shape[0], -1)[:, channel]
+        ya_rows = ya[rows]
+        shown.append(ya_rows)
+    scale = resolve_scale(np.concatenate(shown), style.scale)
+    draw = _log_safe if scale == "log" else (lambda v: v)
+    axes[0].plot(grid * factor, draw(curve), lw=1.6, color="C1", label="rational fit", zorder=3)
+    if xa is not None and ya_rows is not None and rows is not None:
         xs = xa[rows, dim]
         order = np.argsort(xs)
-        xs, ys = xs[order], ya[rows][order]
+        xs, ys = xs[order], ya_rows[order]
         if lo is not None and hi is not None:
             la = np.asarray(lo, dtype=float).reshape(xa.shape[0], -1)[rows, channel][order]
             ha = np.asarray(hi, dtype=float).reshape(xa.shape[0], -1)[rows, channel][order]
-            axes[0].vlines(xs, la, ha, color="0.6", lw=1, label="segments")
-            axes[1].fill_between(xs, la - ys, ha - ys, color="0.85", step="mid",
+            lshow = la
+            if scale == "log":  # a segment reaching 0 is drawn down to the axis's bottom
+                pos = ys[ys > 0]
+                lshow = np.maximum(la, 0.5 * float(pos.min())) if pos.size else la
+            axes[0].vlines(xs * factor, lshow, ha, color="0.6", lw=1,
+                           label="segments (allowed values)")
+            axes[1].fill_between(xs * factor, la - ys, ha - ys, color="0.85", step="mid",
                                  label="allowed")
-        axes[0].plot(xs, ys, ".", ms=3, color="C0",
-                     label=f"data within {slab:.0%} of the line ({xs.size})" if slab
-                     else f"data ({xs.size})")
+        if scale == "log":
+            hidden = int(np.sum(~(ys > 0)))
+        what = (f"data within {slab:.0%} of the line ({xs.size})" if slab
+                else f"data ({xs.size})")
+        if hidden:
+            what += f"; {hidden} at or below 0 not drawn"
+        axes[0].plot(xs * factor, draw(ys), ".", ms=3, color="C0", label=what)
         err = rf(xa[rows][order]) - ys
-        axes[1].plot(xs, err, ".-", ms=3, lw=0.8, color="C3", label="r - y")
+        axes[1].plot(xs * factor, err, ".-", ms=3, lw=0.8, color="C3", label="r - y")
         axes[1].axhline(0.0, color="k", lw=0.5)
         axes[1].legend(fontsize=8)
-    names = [plain(n) for n in _names(names, d)]  # text from files: never mathtext
+    if scale == "log":
+        axes[0].set_yscale("log")
+    names_p = [plain(n) for n in cnames]  # text from files: never mathtext
     chan = plain(saved.channels[channel].name)
-    where = ", ".join(f"{names[k]}={at_pt[k]:.4g}" for k in range(d) if k != dim)
+
+    def at_text(k: int) -> str:
+        f, _ = coord_axis(cnames[k], style)
+        return f"{names_p[k]} = {at_pt[k] * f:.4g}" + (" deg" if is_angle(cnames[k]) else "")
+
+    where = ", ".join(at_text(k) for k in range(d) if k != dim)
     axes[0].set_title(plain(title) if title else f"channel {chan}"
-                      + (f" along {names[dim]} at {where}" if where else "")
+                      + (f" along {names_p[dim]} at {where}" if where else "")
                       + ("\n(fit on the line; data and errors of the samples near it)"
                          if slab else ""), fontsize=10)
-    axes[0].set_ylabel(chan)
+    axes[0].set_ylabel(f"{chan}: {plain(style.value_label)}"
+                       + (" (log scale)" if scale == "log" else ""))
     axes[0].legend(fontsize=8)
-    axes[1].set_xlabel(names[dim])
-    axes[1].set_ylabel("signed error r - y")
+    axes[1].set_xlabel(xlabel)
+    axes[1].set_ylabel(f"signed error r - y\n{_unit_of(style)}")
     fig.tight_layout()
-    return _save(fig, path)
+    return _save(fig, path), scale
+
+
+def _unit_of(style: PlotStyle) -> str:
+    """The unit in a value label "name (unit)", in parentheses; "" when it names none."""
+    lab = plain(style.value_label)
+    i = lab.rfind("(")
+    return lab[i:] if i >= 0 and lab.endswith(")") else ""
 
 
 def plot_error(saved: SavedFit, path: str | Path, x: ArrayLike, y: ArrayLike, *,
                lo: ArrayLike | None = None, hi: ArrayLike | None = None, dim: int = 0,
-               channel: int = 0, names: Sequence[str] | None = None) -> Path:
+               channel: int = 0, names: Sequence[str] | None = None,
+               style: PlotStyle = PlotStyle()) -> Path:
     """Signed error r - y at every data point against coordinate ``dim``, with the band."""
     plt = _plt()
     d = saved.space.dim
@@ -308,22 +440,60 @@ def plot_error(saved: SavedFit, path: str | Path, x: ArrayLike, y: ArrayLike, *,
     ya = np.asarray(y, dtype=float).reshape(xa.shape[0], -1)[:, channel]
     rf = saved.channels[channel].rational
     err = rf(xa) - ya
+    factor, xlabel = coord_axis(_names(names, d)[dim], style)
     fig, ax = plt.subplots(figsize=(8, 4))
-    xs = xa[:, dim]
+    xs = xa[:, dim] * factor
     if lo is not None and hi is not None:
         la = np.asarray(lo, dtype=float).reshape(xa.shape[0], -1)[:, channel] - ya
         ha = np.asarray(hi, dtype=float).reshape(xa.shape[0], -1)[:, channel] - ya
-        ax.vlines(xs, la, ha, color="0.8", lw=2, label="allowed")
+        ax.vlines(xs, la, ha, color="0.8", lw=2, label="allowed (segment - y)")
     ax.plot(xs, err, ".", ms=3, color="C3", label="r - y")
     ax.axhline(0.0, color="k", lw=0.5)
-    ax.set_xlabel(plain(_names(names, d)[dim]))
-    ax.set_ylabel("signed error r - y")
+    ax.set_xlabel(xlabel)
+    ax.set_ylabel(f"signed error r - y {_unit_of(style)}")
     ax.set_title(f"channel {plain(saved.channels[channel].name)}: signed error at "
                  f"{xa.shape[0]} points "
                  f"(max |r - y| = {np.max(np.abs(err)):.3g})")
     ax.legend(fontsize=8)
     fig.tight_layout()
     return _save(fig, path)
+
+
+def plot_relative_error(saved: SavedFit, path: str | Path, x: ArrayLike, y: ArrayLike, *,
+                        lo: ArrayLike | None = None, hi: ArrayLike | None = None,
+                        dim: int = 0, channel: int = 0, names: Sequence[str] | None = None,
+                        style: PlotStyle = PlotStyle()) -> tuple[Path, float]:
+    """Relative error |r - y| / max(|y|, floor) at every data point (log axis), with
+    the allowed relative half-width; floor = ``style.rel_floor`` x max |y|, stated in
+    the title. Returns the path and the floor."""
+    plt = _plt()
+    d = saved.space.dim
+    xa = np.asarray(x, dtype=float).reshape(-1, d)
+    ya = np.asarray(y, dtype=float).reshape(xa.shape[0], -1)[:, channel]
+    floor = rel_floor_value(ya, style.rel_floor)
+    rel = relative_error(saved.channels[channel].rational(xa), ya, floor)
+    factor, xlabel = coord_axis(_names(names, d)[dim], style)
+    xs = xa[:, dim] * factor
+    fig, ax = plt.subplots(figsize=(8, 4))
+    if lo is not None and hi is not None:
+        la = np.asarray(lo, dtype=float).reshape(xa.shape[0], -1)[:, channel]
+        ha = np.asarray(hi, dtype=float).reshape(xa.shape[0], -1)[:, channel]
+        band = np.maximum(ha - ya, ya - la) / np.maximum(np.abs(ya), floor)
+        ax.plot(xs, _log_safe(band), "_", ms=6, color="0.55",
+                label="allowed: segment half-width / max(|y|, floor)")
+    exact = int(np.sum(rel == 0))
+    ax.plot(xs, _log_safe(rel), ".", ms=3, color="C3",
+            label="|r - y| / max(|y|, floor)" + (f" ({exact} exact, not drawn)" if exact
+                                                 else ""))
+    ax.set_yscale("log")
+    ax.set_xlabel(xlabel)
+    ax.set_ylabel("relative error (log scale)")
+    ax.set_title(f"channel {plain(saved.channels[channel].name)}: relative error, floor "
+                 f"{floor:.3g} = {style.rel_floor:g} x max |y| (max {np.max(rel):.3g})",
+                 fontsize=10)
+    ax.legend(fontsize=8)
+    fig.tight_layout()
+    return _save(fig, path), floor
 
 
 def _names(names: Sequence[str] | None, d: int) -> list[str]:
@@ -335,31 +505,65 @@ def _names(names: Sequence[str] | None, d: int) -> list[str]:
 # ---------------------------------------------------------------------------- BRDF views
 def plot_brdf_slices(funcs: dict[str, BRDFFunction], path: str | Path, *,
                      theta_d_deg: Sequence[float] = (0, 15, 30, 45, 60, 75),
-                     channel: int = 0, log: bool = True) -> Path:
-    """BRDF vs theta_h for several theta_d (phi_d = 90 deg), one panel per theta_d."""
+                     channel: int = 0, scale: str = "log", value_label: str = "BRDF (1/sr)",
+                     data: BRDFFunction | None = None) -> Path:
+    """BRDF vs theta_h for several theta_d (phi_d = 90 deg), one panel per theta_d.
+
+    ``scale``: "log", "linear" or "auto" (:func:`resolve_scale` on all values drawn).
+    A function with no value in a panel (outside a fit's domain: measured data rarely
+    reach theta_d = 0, where L = V) is named in that panel, not silently left out.
+    ``data``: measured samples (a :class:`DataBRDF`), dots where a sample lies near."""
     plt = _plt()
-    th = np.radians(np.linspace(0.0, 89.5, 300))
+    th_deg = np.linspace(0.0, 89.5, 300)
+    th = np.radians(th_deg)
     n = len(theta_d_deg)
     cols = min(3, n)
     rows = (n + cols - 1) // cols
-    fig, axes = plt.subplots(rows, cols, figsize=(4 * cols, 3.2 * rows), squeeze=False)
+    fig, axes = plt.subplots(rows, cols, figsize=(4 * cols, 3.3 * rows), squeeze=False)
     styles = ["-", "--", ":", "-."]
-    for a, tdd in zip(axes.flat, theta_d_deg, strict=False):
+    panels = []
+    for tdd in theta_d_deg:
         L, V = rusin_dirs(th, np.radians(tdd), np.pi / 2)
-        for i, (name, fn) in enumerate(funcs.items()):
-            v = _eval_masked(fn, L, V)[:, min(channel, _nch(fn, L, V) - 1)]
-            if log:
-                v = np.where(v > 0, v, np.nan)
-            a.plot(np.degrees(th), v, styles[i % 4], lw=1.2, label=plain(name))
-        a.set_title(f"theta_d = {tdd:g} deg", fontsize=9)
+        vals = {name: _eval_masked(fn, L, V)[:, min(channel, _nch(fn, L, V) - 1)]
+                for name, fn in funcs.items()}
+        dv = None
+        if data is not None:
+            dv = _eval_masked(data, L, V)
+            dv = dv[:, min(channel, dv.shape[1] - 1)]
+        panels.append((tdd, vals, dv))
+    allv = np.concatenate([v for _, vals, dv in panels
+                           for v in [*vals.values(), *([] if dv is None else [dv])]])
+    scale = resolve_scale(allv, scale)
+    draw = _log_safe if scale == "log" else (lambda v: v)
+    handles: dict[str, Any] = {}
+    for a, (tdd, vals, dv) in zip(axes.flat, panels, strict=False):
+        missing = []
+        for i, (name, v) in enumerate(vals.items()):
+            if not np.any(np.isfinite(draw(v))):
+                missing.append(plain(name))
+            (h,) = a.plot(th_deg, draw(v), styles[i % 4], lw=1.6 if i == 0 else 1.2,
+                          color=f"C{i}", label=plain(name))
+            handles.setdefault(plain(name), h)
+        if dv is not None and np.any(np.isfinite(draw(dv))):
+            (h,) = a.plot(th_deg[::6], draw(dv)[::6], ".", ms=3, color="k",
+                          label="data (nearest sample)")
+            handles.setdefault("data (nearest sample)", h)
+        if missing:
+            a.text(0.5, 0.04, "no value here: " + ", ".join(missing)
+                   + "\n(outside the fit's domain: no data at this theta_d)",
+                   transform=a.transAxes, ha="center", va="bottom", fontsize=7, color="0.25")
+        a.set_title(f"theta_d = {tdd:g} deg, phi_d = 90 deg", fontsize=9)
         a.set_xlabel("theta_h (deg)")
-        if log:
+        a.set_xlim(0, 90)
+        if scale == "log":
             a.set_yscale("log")
     for a in list(axes.flat)[n:]:
         a.set_visible(False)
-    axes[0, 0].set_ylabel("BRDF (1/sr)")
-    axes[0, 0].legend(fontsize=8)
-    fig.tight_layout()
+    for a in axes[:, 0]:
+        a.set_ylabel(plain(value_label) + (" (log scale)" if scale == "log" else ""))
+    fig.legend(list(handles.values()), list(handles), loc="lower center",
+               ncol=max(1, len(handles)), fontsize=8, frameon=False)
+    fig.tight_layout(rect=(0, 0.05, 1, 1))
     return _save(fig, path)
 
 
@@ -372,59 +576,106 @@ def _nch(fn: BRDFFunction, L: Array, V: Array) -> int:
     return 1 if v.ndim == 1 else int(v.shape[1])
 
 
+POLAR_DECADES = 4  # decades of a log radius below the largest value drawn
+
+
 def plot_polar(funcs: dict[str, BRDFFunction], path: str | Path, *,
                theta_i_deg: Sequence[float] = (0, 30, 60), channel: int = 0,
-               data: BRDFFunction | None = None) -> Path:
+               data: BRDFFunction | None = None, scale: str = "auto",
+               value_label: str = "BRDF (1/sr)") -> Path:
     """BRDF in the plane of incidence: V from -90 (light side) to +90 deg (mirror side).
 
-    ``data``: the measured samples (e.g. a :class:`DataBRDF`), drawn as dots where a
-    sample lies near the plane."""
+    The radius is the BRDF ("linear") or its decades ("log": log10 of the value,
+    :data:`POLAR_DECADES` decades below the largest value drawn, so a diffuse floor
+    and a specular peak both show); "auto" picks log when the fitted values span
+    more than :data:`AUTO_LOG_SPAN`. On a linear radius the range comes from the
+    fitted curves (a data outlier would shrink them to a dot): a data sample beyond
+    it is drawn on the rim as an open circle. ``data``: the measured
+    samples (e.g. a :class:`DataBRDF`), drawn as dots where a sample lies near the
+    plane."""
+    from matplotlib.ticker import FixedLocator, MaxNLocator
+
     plt = _plt()
-    tv = np.radians(np.linspace(-89.0, 89.0, 357))
-    fig, axes = plt.subplots(1, len(theta_i_deg), figsize=(4.2 * len(theta_i_deg), 3.2),
+    tv_deg = np.linspace(-89.0, 89.0, 357)
+    tv = np.radians(tv_deg)
+    fig, axes = plt.subplots(1, len(theta_i_deg), figsize=(4.6 * len(theta_i_deg), 3.9),
                              subplot_kw={"projection": "polar"}, squeeze=False)
     styles = ["-", "--", ":", "-."]
-    handles: dict[str, Any] = {}
-    for a, tid in zip(axes.flat, theta_i_deg, strict=True):
+    rows = []
+    for tid in theta_i_deg:
         ti = np.radians(tid)
         L = np.tile([np.sin(ti), 0.0, np.cos(ti)], (tv.size, 1))
         V = np.stack([-np.sin(tv), np.zeros_like(tv), np.cos(tv)], axis=1)
-        shown = False
-        top = 0.0
-        for i, (name, fn) in enumerate(funcs.items()):
+        vals = {}
+        for name, fn in funcs.items():
             v = _eval_masked(fn, L, V)
-            v = v[:, min(channel, v.shape[1] - 1)]
-            if np.any(np.isfinite(v)):
-                shown = True
-                top = max(top, float(np.nanmax(v)))
-            (h,) = a.plot(tv, v, styles[i % 4], lw=1.2, label=plain(name))
-            handles.setdefault(plain(name), h)
+            vals[name] = v[:, min(channel, v.shape[1] - 1)]
+        dv = None
         if data is not None:
-            v = _eval_masked(data, L, V)
-            v = v[:, min(channel, v.shape[1] - 1)]
-            if np.any(np.isfinite(v)):
-                shown = True
-                top = max(top, float(np.nanmax(v)))
-            (h,) = a.plot(tv[::6], v[::6], ".", ms=4, color="k", label="data (nearest)")
-            handles.setdefault("data (nearest)", h)
+            dv = _eval_masked(data, L, V)
+            dv = dv[:, min(channel, dv.shape[1] - 1)]
+        rows.append((tid, vals, dv))
+    fitted = np.concatenate([v for _, vals, _ in rows for v in vals.values()])
+    fin = fitted[np.isfinite(fitted)]
+    if not fin.size and data is not None:
+        fin = np.concatenate([dv[np.isfinite(dv)] for _, _, dv in rows if dv is not None])
+    scale = resolve_scale(fin, scale)
+    top = float(fin.max()) if fin.size and fin.max() > 0 else 1.0
+    if scale == "log" and data is not None:  # decades are cheap: the data fits in too
+        dall = np.concatenate([dv[np.isfinite(dv)] for _, _, dv in rows if dv is not None])
+        if dall.size:
+            top = max(top, float(dall.max()))
+    bottom = 10.0 ** (np.floor(np.log10(top)) - POLAR_DECADES)
+
+    def radius(v: Array) -> Array:
+        if scale == "log":
+            return np.log10(np.clip(_log_safe(v), bottom, None))
+        return v
+
+    r_lo, r_hi = (np.log10(bottom), np.log10(top) + 0.05) if scale == "log" else (0.0,
+                                                                                  1.08 * top)
+    handles: dict[str, Any] = {}
+    for a, (tid, vals, dv) in zip(axes.flat, rows, strict=True):
+        shown = False
+        for i, (name, v) in enumerate(vals.items()):
+            shown = shown or bool(np.any(np.isfinite(v)))
+            (h,) = a.plot(tv, np.minimum(radius(v), r_hi), styles[i % 4],
+                          lw=2.2 if i == 0 else 1.4, color=f"C{i}", label=plain(name))
+            handles.setdefault(plain(name), h)
+        if dv is not None:
+            rv = radius(dv[::6])
+            inside = rv <= r_hi
+            (h,) = a.plot(tv[::6][inside], rv[inside], ".", ms=4, color="k",
+                          label="data (nearest sample)")
+            handles.setdefault("data (nearest sample)", h)
+            if np.any(~inside & np.isfinite(rv)):
+                (h,) = a.plot(tv[::6][~inside], np.full(int(np.sum(~inside)), r_hi), "o",
+                              ms=5, mfc="none", color="k",
+                              label="data above the radial range (on the rim)")
+                handles.setdefault("data above the radial range (on the rim)", h)
         a.set_theta_zero_location("N")
         a.set_thetamin(-90)
         a.set_thetamax(90)
-        top = top if top > 0 else 1.0
-        a.set_ylim(0.0, 1.08 * top)
-        from matplotlib.ticker import MaxNLocator
-
-        a.yaxis.set_major_locator(MaxNLocator(3))
+        a.set_ylim(r_lo, r_hi)
+        if scale == "log":
+            ticks = np.arange(np.ceil(r_lo), np.floor(r_hi) + 1)
+            a.yaxis.set_major_locator(FixedLocator(ticks))
+            a.set_yticklabels([f"1e{int(t)}" for t in ticks])
+        else:
+            a.yaxis.set_major_locator(MaxNLocator(3))
         a.tick_params(axis="y", labelsize=7)
         a.set_rlabel_position(90)
-        a.plot([-ti], [top], "o", color="gold", ms=8)
-        a.set_title(f"incidence {tid:g} deg (gold dot: light)", fontsize=9)
+        a.plot([-np.radians(tid)], [r_hi], "o", color="gold", ms=9, clip_on=False)
+        a.set_title(f"incidence theta_i = {tid:g} deg (gold dot: light)", fontsize=9)
+        a.text(0.5, -0.06, "radius: " + plain(value_label)
+               + (", log scale" if scale == "log" else ""), transform=a.transAxes,
+               ha="center", va="top", fontsize=8, color="0.2")
         if not shown:
-            a.text(0.0, 0.5 * top, "outside the fit's domain", ha="center", va="center",
-                   fontsize=9, color="0.3")
+            a.text(0.0, r_lo + 0.5 * (r_hi - r_lo), "outside the fit's domain", ha="center",
+                   va="center", fontsize=9, color="0.3")
     fig.legend(list(handles.values()), list(handles), loc="lower center",
                ncol=max(1, len(handles)), fontsize=8, frameon=False)
-    fig.tight_layout(rect=(0, 0.08, 1, 1))
+    fig.tight_layout(rect=(0, 0.1, 1, 1))
     return _save(fig, path)
 
 

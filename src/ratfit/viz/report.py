@@ -22,6 +22,7 @@ from ratfit.brdf.validity import reprove_saved
 from ratfit.errors import InputError
 from ratfit.io.data import Dataset
 from ratfit.io.fitfile import SavedFit, scope_text, subset_of
+from ratfit.viz.pictures import DEFAULT_STYLE, REL_FLOOR, PlotStyle
 
 __all__ = ["LoadedFit", "compare_table", "load_data_for", "write_report"]
 
@@ -124,7 +125,8 @@ def segments_of(fit: LoadedFit, ds: Dataset):
         return None
 
 
-def rational_metrics(fit: LoadedFit, ds: Dataset) -> list[dict[str, Any]]:
+def rational_metrics(fit: LoadedFit, ds: Dataset, rel_floor: float = REL_FLOOR
+                     ) -> list[dict[str, Any]]:
     from ratfit.brdf.analytic_models import channel_metrics
 
     assert fit.brdf is not None and fit.param is not None and ds.y is not None
@@ -132,10 +134,25 @@ def rational_metrics(fit: LoadedFit, ds: Dataset) -> list[dict[str, Any]]:
     cos_l = data_dirs(fit.param, ds)[0][:, 2]
     out: list[dict[str, Any]] = []
     for j, ch in enumerate(fit.saved.channels):
-        out.append({**channel_metrics(pred[:, j], ds.y[:, j], cos_l), "name": "rational",
-                    "channel": ch.name, "coefficients": ch.rational.total,
+        out.append({**floored(channel_metrics(pred[:, j], ds.y[:, j], cos_l), pred[:, j],
+                              ds.y[:, j], rel_floor),
+                    "name": "rational", "channel": ch.name, "coefficients": ch.rational.total,
                     "detail": f"n={ch.rational.n}, m={ch.rational.m}"})
     return out
+
+
+def floored(m: dict[str, Any], pred: Any, y: Any, rel_floor: float) -> dict[str, Any]:
+    """``m`` with its relative errors measured against max(|y|, floor), floor =
+    ``rel_floor`` x max |y|: rel_rmse (RMS), max_rel (largest) and the floor itself.
+
+    Dividing by |y| alone lets a few near-zero samples decide the number (a rel. RMSE
+    of 500 on a blue paint's red channel, whose errors are all below 0.33 1/sr)."""
+    from ratfit.viz.pictures import rel_floor_value, relative_error
+
+    floor = rel_floor_value(y, rel_floor)
+    rel = relative_error(pred, y, floor)
+    return {**m, "rel_rmse": float(np.sqrt(np.mean(rel**2))), "max_rel": float(np.max(rel)),
+            "rel_floor": floor}
 
 
 def model_fit_for(param: str, ds: Dataset, spec: str, *, starts: int = 6, seed: int = 0):
@@ -150,7 +167,8 @@ def model_fit_for(param: str, ds: Dataset, spec: str, *, starts: int = 6, seed: 
                      seed=seed)
 
 
-def model_metrics(mf, param: str, ds: Dataset) -> list[dict[str, Any]]:
+def model_metrics(mf, param: str, ds: Dataset, rel_floor: float = REL_FLOOR
+                  ) -> list[dict[str, Any]]:
     """Metrics of an analytic fit on the data values as the file gives them."""
     from ratfit.brdf.analytic_models import channel_metrics
 
@@ -161,7 +179,8 @@ def model_metrics(mf, param: str, ds: Dataset) -> list[dict[str, Any]]:
         pred = pred * L[:, 2:3]
     out: list[dict[str, Any]] = []
     for j in range(ds.n_channels):
-        m = channel_metrics(pred[:, min(j, pred.shape[1] - 1)], ds.y[:, j], L[:, 2])
+        pj = pred[:, min(j, pred.shape[1] - 1)]
+        m = floored(channel_metrics(pj, ds.y[:, j], L[:, 2]), pj, ds.y[:, j], rel_floor)
         p = mf.params[min(j, mf.n_channels - 1)]
         out.append({**m, "name": mf.name, "channel": ds.output_names[j],
                     "coefficients": int(p.size),
@@ -217,14 +236,19 @@ def recheck(fit: LoadedFit, seg: Any) -> list[tuple[str, int, int, float]]:
 
 def write_report(fit_path: str | os.PathLike[str], data_path: str | os.PathLike[str] | None,
                  outdir: str | os.PathLike[str], *, models: tuple[str, ...] = ("lambert+ggx",),
-                 size: int = 96) -> ReportResult:
-    """index.html and its PNGs in ``outdir``; everything is read and checked first."""
+                 size: int = 96, style: PlotStyle = DEFAULT_STYLE) -> ReportResult:
+    """index.html and its PNGs in ``outdir``; everything is read and checked first.
+
+    ``style``: its ``scale`` (value axes: "auto", "linear" or "log") and ``rel_floor``
+    (relative errors are |fit - data| / max(|data|, rel_floor x max |data|)); labels
+    and units follow the fit (1/sr and degrees for a BRDF)."""
     from ratfit._version import __version__
 
     fit = LoadedFit.load(fit_path)
     ds = load_data_for(fit, data_path) if data_path is not None else None
     out = Path(outdir)
     res = ReportResult(out / "index.html")
+    style = report_style(fit, style)
     seg = segments_of(fit, ds) if ds is not None else None
     lo = None if seg is None else seg.lo
     hi = None if seg is None else seg.hi
@@ -232,45 +256,88 @@ def write_report(fit_path: str | os.PathLike[str], data_path: str | os.PathLike[
     model_fits = []
     if ds is not None:
         if fit.param is not None:
-            res.metrics = rational_metrics(fit, ds)
+            res.metrics = rational_metrics(fit, ds, style.rel_floor)
             for spec in models:
                 mf = model_fit_for(fit.param, ds, spec)
                 model_fits.append(mf)
-                res.metrics += model_metrics(mf, fit.param, ds)
+                res.metrics += model_metrics(mf, fit.param, ds, style.rel_floor)
         else:
-            res.metrics = _plain_metrics(fit, ds)
+            res.metrics = _plain_metrics(fit, ds, style.rel_floor)
     if seg is not None:
         res.recheck = recheck(fit, seg)
     # every picture and the page are written into a folder beside ``outdir`` that
     # moves into place only when all of them are written: a full disk midway leaves
     # nothing (an error naming ``outdir``), never half a report
     with atomic_dir(out) as work:
-        pics = _pictures(fit, ds, lo, hi, model_fits, res, work, size)
+        pics = _pictures(fit, ds, lo, hi, model_fits, res, work, size, style)
         res.pictures = [out / p.name for _, p in pics]
-        page = _html(fit, data_path, res, pics, __version__)
+        page = _html(fit, data_path, res, pics, __version__, style)
         (work / res.index.name).write_text(page)
     return res
 
 
+def report_style(fit: LoadedFit, style: PlotStyle = DEFAULT_STYLE) -> PlotStyle:
+    """``style``'s scale and floor with the fit's labels: BRDF values in 1/sr (or
+    f cos(theta_l) as an ALTA file gives them) over unitless or angle coordinates;
+    other data in the units of its file, which ratfit does not know."""
+    from dataclasses import replace
+
+    if fit.is_brdf:
+        return replace(style, value_label="BRDF (1/sr)", coord_unit="unitless")
+    return replace(style, value_label="value (file units)", coord_unit="file units")
+
+
+def _scale_note(scale: str, style: PlotStyle) -> str:
+    if scale == "log":
+        return ("Values on a log axis" + (" (chosen automatically: the values span more than "
+                                          "two decades)" if style.scale == "auto" else "")
+                + "; samples at or below 0 cannot be drawn there.")
+    return ("Values on a linear axis" + (" (chosen automatically: they span at most two "
+                                         "decades)" if style.scale == "auto" else "") + ".")
+
+
 def _pictures(fit: LoadedFit, ds: Dataset | None, lo: Any, hi: Any, model_fits: list,
-              res: ReportResult, out: Path, size: int) -> list[tuple[str, Path]]:
-    """The report's pictures written into ``out``: (caption, path) each."""
+              res: ReportResult, out: Path, size: int, style: PlotStyle
+              ) -> list[tuple[str, Path]]:
+    """The report's pictures written into ``out``: (caption, path) each; every
+    caption says what the panel shows, its units and scale."""
     from ratfit.viz import pictures as pic
 
     pics: list[tuple[str, Path]] = []
     dx = None if ds is None else ds.x
     dy = None if ds is None else ds.y
     names = coordinate_names(fit, ds)
+    _, xlabel = pic.coord_axis(names[0], style)
+    units = ("BRDF values in 1/sr, angles in degrees" if fit.is_brdf else
+             "Values and coordinates in the units of the data file")
     for j in range(len(fit.saved.channels)):
-        pics.append((f"channel {fit.channel_names[j]}: fit and data along {names[0]}, "
-                     "signed error", pic.plot_slice(fit.saved, out / f"slice_{j}.png", x=dx,
-                                                    y=dy, lo=lo, hi=hi, channel=j,
-                                                    names=names)))
+        cname = fit.channel_names[j]
+        path, scale = pic._slice(fit.saved, out / f"slice_{j}.png", dx, dy, lo, hi, 0, j,
+                                 None, None, names, style)
+        slab = "" if fit.saved.space.dim == 1 else (
+            " The fit is drawn along a line through the data (the other coordinates fixed "
+            "as the title says); the dots are the samples on that line or, for scattered "
+            "data, within 5 % of it, so a dot may sit off the curve by the fit's change "
+            "across that slab.")
+        pics.append((f"Channel {cname}: the fit (orange) and the data (blue dots) against "
+                     f"{xlabel}, with each sample's allowed segment (grey bars); below, the "
+                     f"signed error fit - data inside the allowed band (grey). {units}. "
+                     + _scale_note(scale, style) + slab, path))
         if ds is not None:
             assert ds.y is not None
-            pics.append((f"channel {fit.channel_names[j]}: signed error at every data point",
+            pics.append((f"Channel {cname}: signed error fit - data at every data point "
+                         f"against {xlabel}; grey bars: the allowed error (segment bounds "
+                         f"- data). A verified fit keeps every red dot inside its bar.",
                          pic.plot_error(fit.saved, out / f"error_{j}.png", ds.x, ds.y, lo=lo,
-                                        hi=hi, channel=j, names=names)))
+                                        hi=hi, channel=j, names=names, style=style)))
+            rpath, floor = pic.plot_relative_error(
+                fit.saved, out / f"relerr_{j}.png", ds.x, ds.y, lo=lo, hi=hi, channel=j,
+                names=names, style=style)
+            pics.append((f"Channel {cname}: relative error |fit - data| / max(|data|, floor) "
+                         f"at every data point, log axis; floor = {floor:.4g} "
+                         f"({style.rel_floor:g} x the channel's largest |data|), so samples "
+                         "near zero are measured against the floor instead of blowing up. "
+                         "Grey dashes: the allowed half-width on the same scale.", rpath))
     if fit.is_brdf:
         assert fit.param is not None
         cf = ds is not None and cos_factor(ds)
@@ -282,35 +349,62 @@ def _pictures(fit: LoadedFit, ds: Dataset | None, lo: Any, hi: Any, model_fits: 
             assert ds.y is not None
             data_fn = pic.DataBRDF(ds.x, ds.y, fit.param, cos_factor=cf,
                                    fold_phi_d=bool(ds.meta.get("fold_phi_d")))
-        pics.append(("BRDF against theta_h for several theta_d (phi_d = 90 deg)",
-                     pic.plot_brdf_slices(funcs, out / "brdf_slices.png")))
-        pics.append(("BRDF in the plane of incidence (dots: nearest data samples)"
-                     if data_fn is not None else "BRDF in the plane of incidence",
-                     pic.plot_polar(funcs, out / "polar.png", data=data_fn)))
+        first = fit.channel_names[0]
+        slice_scale = "log" if style.scale == "auto" else style.scale
+        pics.append((f"Channel {first}: BRDF (1/sr, {slice_scale} axis) against the half "
+                     "angle theta_h (deg), one panel per difference angle theta_d (deg), "
+                     "phi_d = 90 deg (Rusinkiewicz angles); the rational fit, the analytic "
+                     "model(s) fitted to the same data, and (black dots) the nearest data "
+                     "sample where one lies near. A curve that stops, or a panel that names "
+                     "a fit with no value, is outside that fit's domain: it is the box of "
+                     "the data's coordinates, and measured data rarely reach L = V "
+                     "(theta_d = 0) or grazing angles, so the fit is not extrapolated there.",
+                     pic.plot_brdf_slices(funcs, out / "brdf_slices.png", scale=slice_scale,
+                                          data=data_fn)))
+        pics.append((f"Channel {first}: BRDF in the plane of incidence, for three incidence "
+                     "angles theta_i (deg); the angle of each point is the viewing direction "
+                     "(0 = normal, the mirror direction on the side opposite the gold dot, "
+                     "which marks the light), its radius the BRDF in 1/sr"
+                     + (" on a log scale, four decades down from the largest value drawn"
+                        if style.scale == "log" else " on a linear scale" if
+                        style.scale == "linear" else " (a log scale, four decades down from "
+                        "the largest value drawn, where the fit's values span more than two "
+                        "decades; else linear)") + ". Black dots: the nearest data samples; "
+                     "open circles on the rim (linear scale): data above the radial range.",
+                     pic.plot_polar(funcs, out / "polar.png", data=data_fn,
+                                    scale="auto" if style.scale == "auto" else style.scale)))
         imgs = {}
         if data_fn is not None:
             imgs["data"] = pic.render_sphere(data_fn, size=size)
         imgs.update({k: pic.render_sphere(f, size=size) for k, f in funcs.items()})
-        pics.append(("Sphere under a point light (grey: unknown)",
+        pics.append(("A unit sphere under a point light, seen from above by an orthographic "
+                     "camera, each pixel the BRDF x cos(theta_l) x irradiance (one exposure "
+                     "for all images, 99th percentile to white, gamma 2.2); grey: no value "
+                     "(no data sample near, or outside the fit's domain).",
                      pic.plot_spheres(imgs, out / "spheres.png")))
         from ratfit.brdf.albedo import directional_albedo
 
         alb = directional_albedo(funcs["rational"], n_mu=48, n_phi=96)
         res.albedo = alb.to_dict()
         if np.any(np.isfinite(alb.albedo)):  # else the page says why, with no empty plot
-            pics.append(("Directional albedo of the rational fit",
+            pics.append(("Directional albedo of the rational fit (the fraction of light from "
+                         "incidence theta_i, in degrees, reflected into the hemisphere; "
+                         "unitless) per channel; above the red line at 1 the fit would "
+                         "create energy.",
                          _plot_albedo(alb, fit.channel_names, out / "albedo.png")))
     return pics
 
 
-def _plain_metrics(fit: LoadedFit, ds: Dataset) -> list[dict[str, Any]]:
+def _plain_metrics(fit: LoadedFit, ds: Dataset, rel_floor: float = REL_FLOOR
+                   ) -> list[dict[str, Any]]:
     from ratfit.brdf.analytic_models import channel_metrics
 
     assert ds.y is not None
     pred = fit.saved(ds.x)
     out: list[dict[str, Any]] = []
     for j, ch in enumerate(fit.saved.channels):
-        out.append({**channel_metrics(pred[:, j], ds.y[:, j]), "name": "rational",
+        out.append({**floored(channel_metrics(pred[:, j], ds.y[:, j]), pred[:, j], ds.y[:, j],
+                              rel_floor), "name": "rational",
                     "channel": ch.name, "coefficients": ch.rational.total,
                     "detail": f"n={ch.rational.n}, m={ch.rational.m}"})
     return out
@@ -344,24 +438,46 @@ def _plot_albedo(alb, names: list[str], path: Path) -> Path:
         ax.plot(np.degrees(alb.theta_i), alb.albedo[:, j], ".-", label=plain(n))
     ax.axhline(1.0, color="r", lw=0.8, ls="--", label="energy limit")
     ax.set_xlabel("incidence theta_i (deg)")
-    ax.set_ylabel("directional albedo")
+    ax.set_ylabel("directional albedo (unitless)")
     ax.legend(fontsize=8)
     fig.tight_layout()
     return _save(fig, path)
 
 
-def _html(fit: LoadedFit, data_path, res: ReportResult, pics, version: str) -> str:
+def _metrics_note(res: ReportResult, style: PlotStyle, unit: str) -> str:
+    """What each metric means, with the relative-error floor of each channel."""
+    floors = {}
+    for m in res.metrics:
+        if m.get("rel_floor") is not None:
+            floors.setdefault(str(m["channel"]), float(m["rel_floor"]))
+    said = ", ".join(f"{c}: {v:.4g}{unit}" for c, v in floors.items())
+    return ("RMSE = sqrt(mean((fit - data)^2)); rel. RMSE = sqrt(mean((|fit - data| / "
+            f"max(|data|, floor))^2)) with floor = {style.rel_floor:g} x the channel's "
+            f"largest |data|" + (f" ({said})" if said else "") + ", so near-zero samples do "
+            "not decide it; max rel. error: the largest of those ratios; log RMSE: the RMSE "
+            "of log(1 + fit) - log(1 + data); cos RMSE weighs each error by cos(theta_l); "
+            "Linf = max |fit - data|. Without --data no relative error is shown.")
+
+
+def _html(fit: LoadedFit, data_path, res: ReportResult, pics, version: str,
+          style: PlotStyle) -> str:
     e = html.escape
     rows = compare_table(res.metrics)
-    head = ["fit", "channel", "coefficients", "RMSE", "rel. RMSE", "log RMSE", "Linf",
-            "cos RMSE", "parameters"]
+    unit = " (1/sr)" if fit.is_brdf else ""
+    head = ["fit", "channel", "coefficients", f"RMSE{unit}", "rel. RMSE (floored)",
+            "log RMSE", f"Linf{unit}", f"cos RMSE{unit}", "parameters"]
     table = ""
     if rows:
         table = ("<table><tr>" + "".join(f"<th>{e(h)}</th>" for h in head) + "</tr>"
                  + "".join("<tr>" + "".join(f"<td>{e(c)}</td>" for c in r) + "</tr>"
                            for r in rows) + "</table>")
+    # the largest relative error on the data, floored; without data none is shown (the
+    # fit file's own figure divides by |y| alone, so near-zero samples decide it)
+    max_rel = {str(m["channel"]): m.get("max_rel") for m in res.metrics
+               if m.get("name") == "rational"}
     diag = ("<table><tr><th>channel</th><th>n</th><th>m</th><th>verified</th>"
-            "<th>max violation</th><th>Linf</th><th>max rel. error</th></tr>")
+            f"<th>max violation{e(unit)}</th><th>Linf{e(unit)}</th>"
+            "<th>max rel. error (floored)</th></tr>")
     sealed = getattr(fit.saved, "integrity", "sealed") == "sealed"
     sub = subset_of(fit.saved)
     for ch in fit.saved.channels:
@@ -372,7 +488,7 @@ def _html(fit: LoadedFit, data_path, res: ReportResult, pics, version: str) -> s
         diag += (f"<tr><td>{e(ch.name)}</td><td>{ch.rational.n}</td><td>{ch.rational.m}</td>"
                  f"<td>{e(said)}</td>"
                  f"<td>{_num(s.get('max_violation'))}</td><td>{_num(s.get('linf'))}</td>"
-                 f"<td>{_num(s.get('max_rel_error'))}</td></tr>")
+                 f"<td>{_num(max_rel.get(ch.name))}</td></tr>")
     diag += "</table>"
     if sealed:
         diag += f"<p>{e(scope_text(fit.saved, reprove_saved(fit.saved)))}</p>"
@@ -415,9 +531,7 @@ figure {{ margin: 1.5em 0; }} img {{ max-width: 100%; }} .bad {{ color: #b00; }}
 basis {e(fit.saved.space.family.name)}, {fit.saved.space.dim} variable(s). ratfit {e(version)}.</p>
 <h2>Fit diagnostics</h2>{diag}
 <h2>Metrics on the data</h2>{table or "<p>No data given.</p>"}
-<p>RMSE = sqrt(mean((fit - data)^2)); rel. RMSE = sqrt(mean(((fit - data) / data)^2))
-over the samples where data != 0; log RMSE: the RMSE of log(1 + fit) - log(1 + data);
-cos RMSE weighs each error by cos(theta_l); Linf = max |fit - data|.</p>
+<p>{e(_metrics_note(res, style, unit))}</p>
 {alb}
 <h2>Pictures</h2>{figs}
 </body></html>
