@@ -52,6 +52,8 @@ __all__ = [
 ]
 
 Array = NDArray[np.float64]
+# largest lobe value used (scale 1): far beyond any BRDF, far below overflow when squared
+LOBE_CAP = 1e60
 FORMAT = "ratfit.model"
 VERSION = 1
 _EPS = 1e-12
@@ -255,7 +257,10 @@ class Model:
                 cols.append(lb.fn(g, 1.0, *th[1:]))
         M = np.stack(cols, axis=1)
         M[~g.above] = 0.0
-        return np.nan_to_num(M, nan=0.0, posinf=1e300)
+        # a lobe at a trial shape far from the data (a Lafortune exponent of 1e3 at
+        # grazing angles) overflows; capped at LOBE_CAP its residual, squared by the
+        # optimiser's loss, stays finite (1e300 squared was "overflow in square")
+        return np.clip(np.nan_to_num(M, nan=0.0, posinf=LOBE_CAP), -LOBE_CAP, LOBE_CAP)
 
     def evaluate(self, g: Geometry, theta: ArrayLike) -> Array:
         scales = np.array([th[0] for th in self._split(theta)])
@@ -409,12 +414,14 @@ def fit_model(
     starts: int = 8,
     seed: int = 0,
     max_nfev: int = 400,
+    progress: Callable[[str], None] | None = None,
 ) -> ModelFit:
     """Fit ``model`` to values y (N,) or (N, k) at directions L, V, each channel on its own.
 
     ``loss`` is least_squares' loss (robust ``soft_l1`` by default, scale = rms(y));
     ``weight="cos"`` weighs residuals by cos theta_l (radiance-like errors).
-    The best of ``starts`` runs (by the unweighted RMSE) is kept.
+    The best of ``starts`` runs (by the unweighted RMSE) is kept. ``progress`` is
+    called after each run with what it was ("G start 2/8").
     """
     from scipy.optimize import least_squares
 
@@ -447,21 +454,26 @@ def fit_model(
         yj = Y[keep, j]
         scale = float(np.sqrt(np.mean((yj * w) ** 2))) or 1.0
         best, best_rmse = None, np.inf
-        for _ in range(starts):
+        for start in range(starts):
             x0 = np.clip(_initial(mdl, gk, yj, w, rng), lo + 1e-9, hi_in)
 
             def resid(th: Array, yj: Array = yj) -> Array:
                 return (mdl.evaluate(gk, th) - yj) * w
 
             try:
-                res = least_squares(resid, x0, bounds=(lo, hi), loss=loss, f_scale=scale,
-                                    max_nfev=max_nfev, x_scale="jac")
+                # trial steps far off (a scale of 1e40 times a capped lobe) may still
+                # overflow inside the loss: the step is rejected, no warning is news
+                with np.errstate(over="ignore"):
+                    res = least_squares(resid, x0, bounds=(lo, hi), loss=loss, f_scale=scale,
+                                        max_nfev=max_nfev, x_scale="jac")
             except ValueError as exc:
                 raise InputError(f"model fit failed to start: {exc}") from None
             nfev += int(res.nfev)
             rmse = float(np.sqrt(np.mean((mdl.evaluate(gk, res.x) - yj) ** 2)))
             if rmse < best_rmse:
                 best, best_rmse = res.x, rmse
+            if progress is not None:
+                progress(f"{names[j]} start {start + 1}/{starts}")
         assert best is not None
         params.append(best)
         mets.append(channel_metrics(mdl.evaluate(g, best), Y[:, j], g.cos_l))

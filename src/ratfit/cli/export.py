@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import sys
 from pathlib import Path
 from typing import Any
 
@@ -206,9 +207,11 @@ def report_cmd(fit_path: Path, data_path: Path | None, outdir: Path,
 
 # ---------------------------------------------------------------------------- brdf compare
 def _compare(data_path: Path, fits: tuple[str, ...], models: tuple[str, ...], param: str | None,
-             starts: int, as_json: bool) -> None:
+             starts: int, as_json: bool, rel_floor: float = 1e-3) -> None:
 
-    from ratfit.brdf.analytic_models import Model, is_model_file
+    from ratfit.brdf.analytic_models import Model, is_model_file, load_model_fit
+    from ratfit.brdf.io import brdf_dataset
+    from ratfit.cli.progress import StepProgress
     from ratfit.viz.report import (
         METRIC_COLUMNS,
         LoadedFit,
@@ -223,8 +226,9 @@ def _compare(data_path: Path, fits: tuple[str, ...], models: tuple[str, ...], pa
         Model(spec)
     if not fits and not models:
         raise click.UsageError("give at least one FIT file or --model")
-    rows: list[dict] = []
-    first: LoadedFit | None = None
+    # everything is read before the long part: a bad file fails in a second, not after
+    # minutes of model fitting
+    loaded: list[tuple[str, LoadedFit]] = []
     model_files = []
     for f in fits:
         if is_model_file(f):
@@ -233,35 +237,53 @@ def _compare(data_path: Path, fits: tuple[str, ...], models: tuple[str, ...], pa
         lf = LoadedFit.load(f)
         if not lf.is_brdf:
             raise InputError(f"{f}: not a BRDF fit (it records no parametrization)")
-        ds = load_data_for(lf, data_path)
-        for r in rational_metrics(lf, ds):
-            r["name"] = Path(f).name
-            rows.append(r)
-        first = first or lf
-    from ratfit.brdf.analytic_models import load_model_fit
-    from ratfit.brdf.io import brdf_dataset
-
+        loaded.append((f, lf))
+    mfs = [load_model_fit(mp) for mp in model_files]
+    first = loaded[0][1] if loaded else None
     ds = brdf_dataset(data_path, first.param if first is not None else param)
     pname = str(ds.meta.get("param_in"))
-    for mp in model_files:
-        mf = load_model_fit(mp)
-        for r in model_metrics(mf, pname, ds):
-            r["name"] = f"{mp.name} ({mf.name})"
-            rows.append(r)
-    for spec in models:
-        mf = model_fit_for(pname, ds, spec, starts=starts)
-        rows += model_metrics(mf, pname, ds)
+    rows: list[dict] = []
+    # steps: one per rational fit file, one per start of each analytic model's channel
+    total = len(loaded) + len(models) * ds.n_channels * starts
+    with StepProgress("compare", total) as bar:
+        for f, lf in loaded:
+            for r in rational_metrics(lf, load_data_for(lf, data_path), rel_floor):
+                r["name"] = Path(f).name
+                rows.append(r)
+            bar.advance(1, Path(f).name)
+        for mp, mf in zip(model_files, mfs, strict=True):
+            for r in model_metrics(mf, pname, ds, rel_floor):
+                r["name"] = f"{mp.name} ({mf.name})"
+                rows.append(r)
+        for spec in models:
+            mf = model_fit_for(pname, ds, spec, starts=starts,
+                               progress=lambda note, spec=spec: bar.advance(1, f"{spec} {note}"))
+            rows += model_metrics(mf, pname, ds, rel_floor)
     if as_json:
         _write_json({"data": str(data_path), "n_points": ds.n_points, "rows": rows})
         return
     con = console(160)
-    table, dropped = fit_table(con, f"{data_path} ({ds.n_points} samples)",
-                               ["fit", "channel", "coefs", *METRIC_COLUMNS, "parameters"],
-                               compare_table(rows), optional=("cos_rmse", "log_rmse"),
+    columns = ["fit", "channel", "coefs", *METRIC_COLUMNS, "parameters"]
+    # a terminal narrower than the table loses the optional columns (said below it);
+    # a file or a pipe gets every column: nothing is there to be too narrow
+    tty = sys.stdout.isatty()
+    table, dropped = fit_table(con, f"{data_path} ({ds.n_points} samples)", columns,
+                               compare_table(rows),
+                               optional=("cos_rmse", "log_rmse") if tty else (),
                                left=("fit", "parameters"))
+    if not tty:
+        from rich.console import Console
+
+        width = con.measure(table, options=con.options.update_width(100_000)).maximum
+        con = Console(width=max(width, con.width), file=sys.stdout)
     con.print(table)
     if dropped:
         con.print(f"(narrow terminal: {', '.join(dropped)} in --json)", highlight=False)
+    floors = {str(r["channel"]): r["rel_floor"] for r in rows if "rel_floor" in r}
+    con.print(f"rel_rmse: RMS of |fit - data| / max(|data|, floor), floor = {rel_floor:g} x the "
+              "channel's largest |data| (" + ", ".join(f"{c} {v:.4g}" for c, v in
+                                                     floors.items()) + ")",
+              highlight=False, markup=False)
 
 
 def _register_compare(group: click.Group) -> None:
@@ -276,11 +298,14 @@ def _register_compare(group: click.Group) -> None:
     @click.option("--starts", type=click.IntRange(1, 1000), default=8, show_default=True,
                   help="Random starts per analytic fit.")
     @click.option("--json", "as_json", is_flag=True, help="Print one JSON object on stdout.")
+    @rel_floor_option
     @trust_edited_option
     def compare_cmd(data_path: Path, fits: tuple[str, ...], models: tuple[str, ...],
-                    param: str | None, starts: int, as_json: bool) -> None:
-        """Metrics of rational fits (FIT files) and analytic models side by side on DATA."""
-        _compare(data_path, fits, models, param, starts, as_json)
+                    param: str | None, starts: int, as_json: bool, rel_floor: float) -> None:
+        """Metrics of rational fits (FIT files) and analytic models side by side on DATA.
+
+        Shows progress and an estimate of the time left on stderr."""
+        _compare(data_path, fits, models, param, starts, as_json, rel_floor)
 
 
 from ratfit.cli.brdf import brdf_group  # noqa: E402  (its group; imported after ours is defined)

@@ -64,11 +64,19 @@ def render_cmd(fit_path: Path, output: Path, scene: str, spp: int, size: int, sa
         raise click.UsageError(f"output {output} must end in .exr or .png")
     if exposure is not None and not (np.isfinite(exposure) and exposure > 0):
         raise click.UsageError(f"--exposure must be a finite number > 0, got {exposure!r}")
-    report = render_fit(RenderRequest(
-        fit_path, output, scene=scene, spp=spp, size=size, sampling=sampling,
-        cosine_weight=cosine_weight, incidence_nodes=incidence_nodes,
-        conditional_nodes=conditional_nodes, data=data, exposure=exposure, seed=seed,
-        variant=variant, progress=lambda msg: click.echo(msg, err=True)))
+    from ratfit.cli.progress import message_progress
+
+    # notes and phases on stderr, passes with an estimate of the time left (one status
+    # line on a terminal, a line every few seconds in a log); stdout keeps the result
+    say, stop = message_progress()
+    try:
+        report = render_fit(RenderRequest(
+            fit_path, output, scene=scene, spp=spp, size=size, sampling=sampling,
+            cosine_weight=cosine_weight, incidence_nodes=incidence_nodes,
+            conditional_nodes=conditional_nodes, data=data, exposure=exposure, seed=seed,
+            variant=variant, progress=say))
+    finally:
+        stop()
     if as_json:
         click.echo(json.dumps(report.summary(), indent=1, allow_nan=False))
         return

@@ -34,7 +34,8 @@ class RenderRequest:
     the brighter render's 99.5th luminance percentile mapped to 1); with
     ``data`` (a measured BRDF file) it holds fit | data | |difference| side by
     side and the difference alone goes to OUTPUT-diff. ``progress`` receives
-    one line per step (not part of what is asked: not compared).
+    one line per step (not part of what is asked: not compared); a line that starts
+    with "~" reports a render pass with the time left, the others notes and phases.
     """
 
     fit: Path
@@ -134,8 +135,12 @@ def render_fit(request: RenderRequest) -> RenderReport:
         req.say(f"note: {100 * mat.outside_fraction:.1f}% of directions (theta_l = 34 deg) lie "
                 "outside the fit's domain even after reciprocity/isotropy; evaluated at the "
                 "nearest point of its box")
+    if req.variant == "auto" and mb.variant() is None:
+        req.say("choosing the Mitsuba variant (probing LLVM) ...")
     variant = mb.setup(None if req.variant == "auto" else req.variant)
-    req.say(f"mitsuba variant {variant}")
+    req.say(f"mitsuba variant {variant}" + (
+        " (no libLLVM >= 16: the scalar variant is some 10x slower; passes report the "
+        "time left)" if variant == "scalar_rgb" else ""))
     report = RenderReport(req, variant, [], 1.0, mat.negative_fraction, mat.outside_fraction)
     sampler = _sampler(req, mat, report, clock, "fitting the sampling CDFs ...")
     with clock.phase("render"):

@@ -114,7 +114,7 @@ def render_image(material, *, size: int = 256, spp: int = 64, sampling: str = "f
     (MIS of light and BSDF samples) or "bsdf" (BSDF samples only: what a sampler
     alone achieves).
     """
-    from ratfit.render.mitsuba_bsdf import _import_mitsuba, make_bsdf, setup
+    from ratfit.render.mitsuba_bsdf import _import_mitsuba, make_bsdf, setup, variant
 
     if size < 1 or spp < 1:
         raise InputError(f"size and spp must be >= 1, got size={size}, spp={spp}")
@@ -123,7 +123,10 @@ def render_image(material, *, size: int = 256, spp: int = 64, sampling: str = "f
     bsdf = make_bsdf(material, sampler, sampling)
     sc = mi.load_dict(_scene_dict(mi, bsdf, scene, int(size), integrator))
     if passes is None:
-        per = max(1, min(spp, (1 << 20) // max(1, size * size)))
+        # about 1M samples a pass on the LLVM variant; the scalar one is some 10x slower,
+        # so its passes are smaller: a progress line (and estimate) every few seconds
+        budget = (1 << 20) if variant() != "scalar_rgb" else (1 << 16)
+        per = max(1, min(spp, budget // max(1, size * size)))
         passes = -(-spp // per)
     passes = max(1, min(int(passes), spp))
     base, extra = divmod(spp, passes)
@@ -136,8 +139,12 @@ def render_image(material, *, size: int = 256, spp: int = 64, sampling: str = "f
         acc += img[..., :3] * n
         done += n
         if progress is not None:
-            progress(f"{label}: pass {k + 1}/{passes}, {done}/{spp} spp, "
-                     f"{time.perf_counter() - t0:.1f} s")
+            el = time.perf_counter() - t0
+            left = el / done * (spp - done)
+            eta = ("done" if done == spp else f"about {left:.0f} s left" if left < 120
+                   else f"about {left / 60:.0f} min left")
+            # "~": a step of a long task (a terminal shows it on one status line)
+            progress(f"~{label}: pass {k + 1}/{passes}, {done}/{spp} spp, {el:.1f} s, {eta}")
     return acc / spp
 
 

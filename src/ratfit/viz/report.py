@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import html
 import os
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -155,8 +156,10 @@ def floored(m: dict[str, Any], pred: Any, y: Any, rel_floor: float) -> dict[str,
             "rel_floor": floor}
 
 
-def model_fit_for(param: str, ds: Dataset, spec: str, *, starts: int = 6, seed: int = 0):
-    """Fit an analytic model to the data (BRDF values; a cosine factor is divided out)."""
+def model_fit_for(param: str, ds: Dataset, spec: str, *, starts: int = 6, seed: int = 0,
+                  progress: Callable[[str], None] | None = None):
+    """Fit an analytic model to the data (BRDF values; a cosine factor is divided out);
+    ``progress`` is called after each start of each channel."""
     from ratfit.brdf.analytic_models import Model, fit_model
 
     L, V = data_dirs(param, ds)
@@ -164,7 +167,7 @@ def model_fit_for(param: str, ds: Dataset, spec: str, *, starts: int = 6, seed: 
     if cos_factor(ds):
         y = y / np.maximum(L[:, 2:3], 1e-6)
     return fit_model(Model(spec), L, V, y, channel_names=ds.output_names, starts=starts,
-                     seed=seed)
+                     seed=seed, progress=progress)
 
 
 def model_metrics(mf, param: str, ds: Dataset, rel_floor: float = REL_FLOOR
