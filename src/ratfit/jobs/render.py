@@ -139,8 +139,10 @@ def render_fit(request: RenderRequest) -> RenderReport:
         req.say("choosing the Mitsuba variant (probing LLVM) ...")
     variant = mb.setup(None if req.variant == "auto" else req.variant)
     req.say(f"mitsuba variant {variant}" + (
-        " (no libLLVM >= 16: the scalar variant is some 10x slower; passes report the "
-        "time left)" if variant == "scalar_rgb" else ""))
+        " (no working libLLVM >= 16 found)" if variant == "scalar_rgb" and req.variant == "auto"
+        else "") + (": the scalar variant calls the BSDF once per sample, far slower; one "
+                    "pass per sample per pixel, each reporting the time left"
+                    if variant == "scalar_rgb" else ""))
     report = RenderReport(req, variant, [], 1.0, mat.negative_fraction, mat.outside_fraction)
     sampler = _sampler(req, mat, report, clock, "fitting the sampling CDFs ...")
     with clock.phase("render"):

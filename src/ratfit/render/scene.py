@@ -123,9 +123,10 @@ def render_image(material, *, size: int = 256, spp: int = 64, sampling: str = "f
     bsdf = make_bsdf(material, sampler, sampling)
     sc = mi.load_dict(_scene_dict(mi, bsdf, scene, int(size), integrator))
     if passes is None:
-        # about 1M samples a pass on the LLVM variant; the scalar one is some 10x slower,
-        # so its passes are smaller: a progress line (and estimate) every few seconds
-        budget = (1 << 20) if variant() != "scalar_rgb" else (1 << 16)
+        # about 1M samples a pass on the LLVM variant; the scalar one calls the Python
+        # BSDF per sample (100x slower or more), so one sample per pixel a pass: the
+        # first progress line and estimate come after 1/spp of the render
+        budget = (1 << 20) if variant() != "scalar_rgb" else 0
         per = max(1, min(spp, budget // max(1, size * size)))
         passes = -(-spp // per)
     passes = max(1, min(int(passes), spp))
