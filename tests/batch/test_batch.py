@@ -336,12 +336,17 @@ def test_cli_bad_usage_exit_2(tmp_path, monkeypatch):
 
 
 @pytest.mark.slow
-def test_cli_runs_on_an_existing_scheduler(client, shared_data, tmp_path):
+def test_cli_runs_on_an_existing_scheduler(client, shared_data, tmp_path, monkeypatch):
+    monkeypatch.setattr(batch, "PROGRESS_EVERY", 0.0)
     m = tmp_path / "m.toml"
     m.write_text(f'[defaults]\ndt = 0.02\n[[inputs]]\npath = "{shared_data}/nist/Rat4*.dat"\n')
     out = tmp_path / "out"
     r = cli("batch", m, "-o", out, "--scheduler", client.scheduler.address, "--json")
     assert r.exit_code == 0, r.output
+    # progress with an estimate on stderr (not a terminal: a plain line per result here)
+    lines = [ln for ln in r.stderr.splitlines() if ln.startswith("ratfit: batch")]
+    assert len(lines) == 2 and "about" in lines[0] and lines[0].endswith(" s left")
+    assert lines[1].startswith("ratfit: batch 2/2, 0 failed or no fit,")
     doc = json.loads(r.stdout)
     assert (doc["tasks"], doc["fitted"], doc["ok"]) == (2, 2, 2)
     assert {Path(row["input"]).name for row in doc["rows"]} == {"Rat42.dat", "Rat43.dat"}

@@ -51,3 +51,32 @@ def test_json_runs_show_progress_on_stderr_and_keep_stdout_one_object(
     assert lines and all(re.fullmatch(r"ratfit: \d+ s, tested \d+ splits(; last .*)?", ln)
                          for ln in lines), lines[:3]
     assert max(int(ln.split("tested ")[1].split()[0]) for ln in lines) <= doc["qp_solves"]
+
+
+def test_step_lines_are_throttled_notes_are_not(monkeypatch, capsys) -> None:
+    """Long jobs' steps (render passes) print at most every PROGRESS_EVERY seconds in a
+    log, their first step (the first estimate), last step and every note always;
+    stdout gets nothing."""
+    from ratfit.cli.progress import StepProgress, message_progress
+
+    monkeypatch.setattr(cli_main, "PROGRESS_EVERY", 3600.0)
+    say, stop = message_progress(tty=False)
+    say("note: something a reader must see")
+    for k in range(1, 5):
+        say(f"~fit: pass {k}/4, {k}/4 spp, 1.0 s, " + ("done" if k == 4 else "about 3 s left"))
+    stop()
+    out = capsys.readouterr()
+    assert out.out == ""
+    assert out.err.splitlines() == ["note: something a reader must see",
+                                    "fit: pass 1/4, 1/4 spp, 1.0 s, about 3 s left",
+                                    "fit: pass 4/4, 4/4 spp, 1.0 s, done"]
+    monkeypatch.setattr(cli_main, "PROGRESS_EVERY", 0.0)
+    with StepProgress("compare", 4, tty=False) as bar:
+        for k in range(4):
+            bar.advance(1, f"start {k + 1}")
+    lines = capsys.readouterr().err.splitlines()
+    assert len(lines) == 4 and all(ln.startswith("ratfit: compare ") for ln in lines)
+    assert "s left (start 1)" in lines[0] and lines[-1].startswith("ratfit: compare 4/4, ")
+    with StepProgress("quiet", 2, enabled=False, tty=False) as bar:
+        bar.advance(2)
+    assert capsys.readouterr().err == ""

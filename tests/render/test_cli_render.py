@@ -111,6 +111,7 @@ def test_render_png_with_fit_sampling_and_progress(rgb_fit: Path, tmp_path: Path
                                     "--conditional-nodes", "3"])
     assert res.exit_code == 0, res.output
     assert "pass 1/1, 4/4 spp" in res.output and "verified rational CDFs" in res.output
+    assert "fit: pass 1/1, 4/4 spp," in res.stderr and res.stderr.count(", done") == 1
     assert out.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
 
 

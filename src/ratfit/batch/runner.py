@@ -1000,14 +1000,23 @@ def _run_into(work: Path, out: Path, tasks: list[Task], unreadable: list[dict[st
     return finish(False)
 
 
+# seconds between progress lines in a log (no terminal)
+PROGRESS_EVERY = 5.0
+
 class _Bar:
-    """A rich progress bar on stderr: done / failed / remaining (terminals only)."""
+    """Progress on stderr: done / failed / remaining with the time spent and an estimate
+    of the time left. A rich bar on a terminal; elsewhere (a log) a plain line at most
+    every :data:`PROGRESS_EVERY` seconds and at the end."""
 
     def __init__(self, total: int, done: int, enabled: bool) -> None:
         self.failed = 0
+        self.total = total
+        self.start_done = done
         self.left = total - done
         self.p = None
-        if not enabled:
+        self.lines = enabled and not sys.stderr.isatty()
+        self.t0 = self.last = time.monotonic()
+        if not enabled or self.lines:
             return
         from rich.console import Console
         from rich.progress import (
@@ -1016,12 +1025,14 @@ class _Bar:
             Progress,
             TextColumn,
             TimeElapsedColumn,
+            TimeRemainingColumn,
         )
 
         self.p = Progress(
             TextColumn("fitting"), BarColumn(), MofNCompleteColumn(),
             TextColumn("{task.fields[failed]} failed or no fit, {task.fields[left]} remaining"),
-            TimeElapsedColumn(), console=Console(stderr=True),
+            TimeElapsedColumn(), TextColumn("left"), TimeRemainingColumn(),
+            console=Console(stderr=True),
         )
         self.task = self.p.add_task("fits", total=total, completed=done, failed=0,
                                     left=self.left)
@@ -1032,6 +1043,19 @@ class _Bar:
         self.failed += status != "ok"
         if self.p is not None:
             self.p.update(self.task, advance=1, failed=self.failed, left=self.left)
+        elif self.lines:
+            now = time.monotonic()
+            if now - self.last >= PROGRESS_EVERY or self.left == 0:
+                self.last = now
+                el = now - self.t0
+                run_now = self.total - self.start_done - self.left
+                eta = ""
+                if self.left and run_now:
+                    rest = el / run_now * self.left
+                    eta = (f", about {rest:.0f} s left" if rest < 120
+                           else f", about {rest / 60:.0f} min left")
+                print(f"ratfit: batch {self.total - self.left}/{self.total}, {self.failed} "
+                      f"failed or no fit, {el:.0f} s{eta}", file=sys.stderr, flush=True)
 
     def stop(self) -> None:
         if self.p is not None:

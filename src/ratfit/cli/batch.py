@@ -44,7 +44,9 @@ def batch_cmd(manifest: Path, outdir: Path, scheduler: str | None, workers: int 
         summary = run(
             manifest, outdir=outdir, scheduler=scheduler, workers=workers,
             rerun_failed=rerun_failed, allowed_failures=allowed_failures,
-            progress=not as_json and sys.stderr.isatty(),
+            # on stderr (stdout keeps the result): a bar with the time left on a
+            # terminal, a line every few seconds in a log
+            progress=True,
         )
     except BatchInterrupted as exc:
         s = exc.summary
