@@ -210,5 +210,6 @@ def test_report_failing_midway_leaves_nothing_and_names_the_folder(
     monkeypatch.setattr(pictures, "plot_error", real)
     res = run_cli("report", fit, "--data", csv, "-o", out)
     assert res.exit_code == 0, res.output
-    assert sorted(p.name for p in out.iterdir()) == ["error_0.png", "index.html", "slice_0.png"]
+    assert sorted(p.name for p in out.iterdir()) == ["error_0.png", "index.html", "relerr_0.png",
+                                                     "slice_0.png"]
     assert sorted(p.name for p in (tmp_path / "fresh").iterdir()) == ["report"]
