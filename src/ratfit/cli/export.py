@@ -256,8 +256,10 @@ def _compare(data_path: Path, fits: tuple[str, ...], models: tuple[str, ...], pa
                 r["name"] = f"{mp.name} ({mf.name})"
                 rows.append(r)
         for spec in models:
-            mf = model_fit_for(pname, ds, spec, starts=starts,
-                               progress=lambda note, spec=spec: bar.advance(1, f"{spec} {note}"))
+            def step(note: str, spec: str = spec) -> None:
+                bar.advance(1, f"{spec} {note}")
+
+            mf = model_fit_for(pname, ds, spec, starts=starts, progress=step)
             rows += model_metrics(mf, pname, ds, rel_floor)
     if as_json:
         _write_json({"data": str(data_path), "n_points": ds.n_points, "rows": rows})

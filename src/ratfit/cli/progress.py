@@ -89,10 +89,6 @@ class StepProgress:
                        f"{_eta(elapsed, self.done, self.total)}"
                        + (f" ({note})" if note else ""), err=True)
 
-    def callback(self) -> Callable[[str], None]:
-        """A one-step-per-call function (for libraries that report with a text)."""
-        return lambda note="": self.advance(1, note)
-
 
 def message_progress(*, tty: bool | None = None) -> tuple[Callable[[str], None],
                                                            Callable[[], None]]:

@@ -659,7 +659,7 @@ def plot_polar(funcs: dict[str, BRDFFunction], path: str | Path, *,
         a.set_ylim(r_lo, r_hi)
         if scale == "log":
             ticks = np.arange(np.ceil(r_lo), np.floor(r_hi) + 1)
-            a.yaxis.set_major_locator(FixedLocator(ticks))
+            a.yaxis.set_major_locator(FixedLocator(ticks.tolist()))
             a.set_yticklabels([f"1e{int(t)}" for t in ticks])
         else:
             a.yaxis.set_major_locator(MaxNLocator(3))

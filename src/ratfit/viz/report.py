@@ -449,7 +449,7 @@ def _plot_albedo(alb, names: list[str], path: Path) -> Path:
 
 def _metrics_note(res: ReportResult, style: PlotStyle, unit: str) -> str:
     """What each metric means, with the relative-error floor of each channel."""
-    floors = {}
+    floors: dict[str, float] = {}
     for m in res.metrics:
         if m.get("rel_floor") is not None:
             floors.setdefault(str(m["channel"]), float(m["rel_floor"]))
