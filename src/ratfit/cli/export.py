@@ -211,16 +211,7 @@ def _compare(data_path: Path, fits: tuple[str, ...], models: tuple[str, ...], pa
 
     from ratfit.brdf.analytic_models import Model, is_model_file, load_model_fit
     from ratfit.brdf.io import brdf_dataset
-    from ratfit.cli.progress import StepProgress
-    from ratfit.viz.report import (
-        METRIC_COLUMNS,
-        LoadedFit,
-        compare_table,
-        load_data_for,
-        model_fit_for,
-        model_metrics,
-        rational_metrics,
-    )
+    from ratfit.viz.report import LoadedFit
 
     for spec in models:
         Model(spec)
@@ -238,12 +229,25 @@ def _compare(data_path: Path, fits: tuple[str, ...], models: tuple[str, ...], pa
         if not lf.is_brdf:
             raise InputError(f"{f}: not a BRDF fit (it records no parametrization)")
         loaded.append((f, lf))
-    mfs = [load_model_fit(mp) for mp in model_files]
+    mfs = [(mp, load_model_fit(mp)) for mp in model_files]
     first = loaded[0][1] if loaded else None
     ds = brdf_dataset(data_path, first.param if first is not None else param)
+    rows = _compare_rows(data_path, ds, loaded, mfs, models, starts, rel_floor)
+    if as_json:
+        _write_json({"data": str(data_path), "n_points": ds.n_points, "rows": rows})
+        return
+    _print_compare(rows, f"{data_path} ({ds.n_points} samples)", rel_floor)
+
+
+def _compare_rows(data_path: Path, ds: Any, loaded: list, mfs: list, models: tuple[str, ...],
+                  starts: int, rel_floor: float) -> list[dict]:
+    """The metric rows of each fit file, model file and model fitted here, with progress:
+    one step per fit file and per start of each model's channel."""
+    from ratfit.cli.progress import StepProgress
+    from ratfit.viz.report import load_data_for, model_fit_for, model_metrics, rational_metrics
+
     pname = str(ds.meta.get("param_in"))
     rows: list[dict] = []
-    # steps: one per rational fit file, one per start of each analytic model's channel
     total = len(loaded) + len(models) * ds.n_channels * starts
     with StepProgress("compare", total) as bar:
         for f, lf in loaded:
@@ -251,7 +255,7 @@ def _compare(data_path: Path, fits: tuple[str, ...], models: tuple[str, ...], pa
                 r["name"] = Path(f).name
                 rows.append(r)
             bar.advance(1, Path(f).name)
-        for mp, mf in zip(model_files, mfs, strict=True):
+        for mp, mf in mfs:
             for r in model_metrics(mf, pname, ds, rel_floor):
                 r["name"] = f"{mp.name} ({mf.name})"
                 rows.append(r)
@@ -261,16 +265,18 @@ def _compare(data_path: Path, fits: tuple[str, ...], models: tuple[str, ...], pa
 
             mf = model_fit_for(pname, ds, spec, starts=starts, progress=step)
             rows += model_metrics(mf, pname, ds, rel_floor)
-    if as_json:
-        _write_json({"data": str(data_path), "n_points": ds.n_points, "rows": rows})
-        return
+    return rows
+
+
+def _print_compare(rows: list[dict], title: str, rel_floor: float) -> None:
+    """The table; a terminal narrower than it loses the optional columns (said below
+    it), a file or a pipe gets every column: nothing there is too narrow."""
+    from ratfit.viz.report import METRIC_COLUMNS, compare_table
+
     con = console(160)
     columns = ["fit", "channel", "coefs", *METRIC_COLUMNS, "parameters"]
-    # a terminal narrower than the table loses the optional columns (said below it);
-    # a file or a pipe gets every column: nothing is there to be too narrow
     tty = sys.stdout.isatty()
-    table, dropped = fit_table(con, f"{data_path} ({ds.n_points} samples)", columns,
-                               compare_table(rows),
+    table, dropped = fit_table(con, title, columns, compare_table(rows),
                                optional=("cos_rmse", "log_rmse") if tty else (),
                                left=("fit", "parameters"))
     if not tty:
