@@ -75,7 +75,7 @@ def test_merl_round_trip(merl_file: tuple[Path, np.ndarray]) -> None:
     assert 0.5 < ok.mean() < 0.9  # cells below the horizon are stored as missing
     # Scale factors 1/1500, 1.15/1500, 1.66/1500 undo exactly what the writer applied.
     assert np.max(np.abs(m.rgb[ok] - table[ok]) / table[ok]) < 1e-15
-    # Nearest-cell lookup at the cell centres gives the analytic values there.
+    # Lookup at MERL's sample points (lower cell edges) gives the analytic values there.
     P = get_parametrization("RUSIN_TH_TD_PD")
     rng = np.random.default_rng(3)
     cells = rng.choice(np.flatnonzero(ok.ravel()), 300, replace=False)
