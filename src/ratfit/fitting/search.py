@@ -543,6 +543,10 @@ class RationalFitter(Regressor):
         a time, no hint from (or to) another channel."""
         t0 = time.perf_counter()
         o = self.options_
+        clash = disjoint_repeats(seg, j)
+        if clash is not None:  # no function at all: nothing to search
+            return no_function_fits(clash, space, seg, j, self.options_.solver,
+                                    time.perf_counter() - t0)
         deadline = None
         if o.time_limit is not None:
             # ``spent``: seconds this channel already used in another variable; the
@@ -654,6 +658,46 @@ class SearchParts:
     constraint_points: Callable[[], int] | None = None
     regenerate: int = 2
     active_set: bool | None = None
+
+
+def disjoint_repeats(seg: Segments, j: int) -> str | None:
+    """Why no function meets channel j's segments, or None: two segments at one x
+    (a repeated sample) that do not overlap. Sorting the rows is all it costs."""
+    if seg.n_points < 2:
+        return None
+    order = np.lexsort(seg.x.T[::-1])
+    xs = seg.x[order]
+    new_group = np.r_[True, np.any(xs[1:] != xs[:-1], axis=1)]
+    if new_group.all():
+        return None
+    starts = np.flatnonzero(new_group)
+    lo, hi = seg.lo[order, j], seg.hi[order, j]
+    top_lo = np.maximum.reduceat(lo, starts)
+    low_hi = np.minimum.reduceat(hi, starts)
+    gap = top_lo - low_hi
+    if not np.any(gap > 0):
+        return None
+    g = int(np.argmax(gap))
+    members = order[starts[g]:(starts[g + 1] if g + 1 < starts.size else order.size)]
+    a = int(members[np.argmax(seg.lo[members, j])])
+    b = int(members[np.argmin(seg.hi[members, j])])
+    where = ", ".join(f"{v:.10g}" for v in seg.x[a])
+    return (f"no function fits: at x = {where} the segments of rows {min(a, b)} and "
+            f"{max(a, b)} do not overlap ([{seg.lo[a, j]:.10g}, {seg.hi[a, j]:.10g}] and "
+            f"[{seg.lo[b, j]:.10g}, {seg.hi[b, j]:.10g}]; {int(np.count_nonzero(gap > 0))} "
+            "repeated x value(s) with disjoint segments); widen the segments")
+
+
+def no_function_fits(reason: str, space: PolynomialSpace, seg: Segments, j: int,
+                     solver: str, seconds: float) -> FitResult:
+    """Status 1 without a search: ``reason`` says why no function meets the segments."""
+    nan = float("nan")
+    return FitResult(
+        success=False, status=1, message=reason, n=0, m=0,
+        basis=space.family.name, index_set=space.index_set, rational=None,
+        verification=None, delta=nan, sigma_min=nan, sigma_max=nan, active_set_size=0,
+        qp_solves=0, seconds=seconds, solver=solver, decided_by="disjoint segments",
+        channel=seg.names[j])
 
 
 def fit(segments: Segments, **params) -> FitResult:
