@@ -50,3 +50,24 @@ def test_cli_says_it_in_one_line(tmp_path):
     lines = [ln for ln in res.output.splitlines() if "no function fits" in ln]
     assert lines, res.output
     assert "Traceback" not in res.output
+
+
+def test_give_up_says_what_was_covered():
+    """Noise no small rational meets (Gauss1's kind): the status-1 message counts the
+    splits of the totals searched that infeasible splits rule out, that gave no
+    verdict and that were not tested; the three add up to every split."""
+    rng = np.random.default_rng(0)
+    x = np.linspace(0, 1, 120)
+    seg = Segments.from_relative(x, 10 + rng.normal(size=x.size), 1e-3)
+    r = RationalFitter(jobs=1, max_total=12).fit(seg).result_
+    assert r.status == 1
+    import re
+
+    total = re.search(r"of the (\d+) splits of these totals, (\d+) are ruled out", r.message)
+    assert total is not None, r.message
+    assert int(total.group(1)) == sum(t - 1 for t in range(2, 13))
+    counts = [int(total.group(2))]
+    for pat in (r"(\d+) tested gave no verdict", r"(\d+) were not tested"):
+        hit = re.search(pat, r.message)
+        counts.append(int(hit.group(1)) if hit else 0)
+    assert sum(counts) == int(total.group(1)), r.message

@@ -1154,18 +1154,19 @@ class SearchEngine:
                     msg = (
                         f"{STATUS_MESSAGES[1]}: no rational of this size fits these "
                         f"segments (certificate: "
-                        f"{proof['statement']}); none of {span} gave a verified fit"
+                        f"{proof['statement']}); none of {span} gave a verified fit; "
+                        f"{self.coverage(lo, hi)}"
                     )
                 elif proof is not None and proof["numerical"]:
                     msg = (
                         f"{STATUS_MESSAGES[1]}: none of {span} gave a verified fit "
-                        f"({proof['statement']})"
+                        f"({proof['statement']}); {self.coverage(lo, hi)}"
                     )
                 else:
                     msg = (
                         f"{STATUS_MESSAGES[1]}: none of {span} gave a verified fit "
-                        f"(largest tried: n={att.n}, m={att.m}); solver failed or reported "
-                        "infeasible without a checked certificate"
+                        f"(largest tried: n={att.n}, m={att.m}); {self.coverage(lo, hi)} "
+                        "(float checks, no exact certificate)"
                     )
         return FitResult(
             success=status == 0,
@@ -1192,6 +1193,41 @@ class SearchEngine:
             disagreements=disagreements,
             infeasible_proof=proof if status == 1 else None,
         )
+
+    def coverage(self, lo: int, hi: int) -> str:
+        """What the search covered of the splits of totals lo..hi, for a status 1
+        without a proof: how many an infeasible split rules out (float checks, no
+        exact certificate), how many were tested without a verdict, how many were
+        neither (beyond the balanced splits, which the walk stops at)."""
+        ns, ms = [], []
+        for t in range(max(lo, 2), hi + 1):
+            m = np.arange(1, t)
+            ns.append(t - m)
+            ms.append(m)
+        if not ns:
+            return "no split in range"
+        n_all, m_all = np.concatenate(ns), np.concatenate(ms)
+        out = np.zeros(n_all.size, dtype=bool)
+        for a, b in self.infeasible:
+            out |= (n_all <= a) & (m_all <= b)
+        tested = {s for s in self.cache if lo <= sum(s) <= hi}
+        undecided = sum(1 for s in tested if self.cache[s][0].status != "infeasible"
+                        and not out[_split_index(s, lo)])
+        left = int(n_all.size - out.sum()) - undecided
+        top = max((s for s in self.infeasible), key=sum, default=None)
+        parts = [f"of the {n_all.size} splits of these totals, {int(out.sum())} are ruled out "
+                 "by splits found infeasible"]
+        if undecided:
+            parts.append(f"{undecided} tested gave no verdict (solver failed: a breakdown, "
+                         "a margin at its tolerance, or a candidate that failed verification)")
+        if left > 0:
+            if top is not None and all(a <= top[0] and b <= top[1] for a, b in self.infeasible):
+                why = (f"n > {top[0]} or m > {top[1]}: the walk stops where the balanced "
+                       "splits give no fit")
+            else:
+                why = "neither tested nor ruled out"
+            parts.append(f"{left} were not tested ({why})")
+        return "; ".join(parts)
 
     def timed_out(self, lo: int, hi: int, secs: float) -> FitResult:
         """The result when the time budget ran out: the smallest verified fit so far
@@ -1221,6 +1257,13 @@ class SearchEngine:
 
 class _OutOfTime(Exception):
     """The search's time budget ran out (raised between splits)."""
+
+
+def _split_index(s: tuple[int, int], lo: int) -> int:
+    """Position of split s in the list of every split of totals max(lo, 2), ... by m."""
+    first = max(lo, 2)
+    t = s[0] + s[1]
+    return sum(u - 1 for u in range(first, t)) + s[1] - 1
 
 
 def _balanced(total: int) -> tuple[int, int]:
