@@ -39,6 +39,7 @@ VALUES: dict[str, tuple[list[str], Any]] = {
     "jobs": (["--jobs", "2"], 2),
     "formulation": (["--formulation", "basis"], "basis"),
     "time_limit": (["--time-limit", "7"], 7.0),
+    "work_limit": (["--work-limit", "900"], 900),
     "variable": (["--variable", "x"], "x"),
 }
 # What each mode refuses (exit 2, one line naming it); everything else is honoured.

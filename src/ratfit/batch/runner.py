@@ -148,7 +148,7 @@ BRDF_DEFAULTS: dict[str, Any] = {**DEFAULTS, "solver": BRDF_SOLVER}
 _NOT_HASHED = ("jobs", "warm_start")
 # Settings added after manifests were in use: left out of the settings id while they
 # hold their default, so results of earlier runs keep their ids (and are resumed).
-_HASHED_IF_SET = ("formulation", "time_limit", "kind", *BRDF_SETTINGS)
+_HASHED_IF_SET = ("formulation", "time_limit", "work_limit", "kind", *BRDF_SETTINGS)
 _QUIET_VALUES = {**{k: (DEFAULTS[k],) for k in _HASHED_IF_SET}, "kind": ("auto", "data")}
 ENTRY_KEYS = ("path", "channels", "settings")
 TOP_KEYS = ("inputs", "defaults", "settings")

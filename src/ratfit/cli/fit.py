@@ -62,7 +62,7 @@ def fit_cmd(input_path: Path, output: Path | None, fmt: str | None, dt: float | 
     """
     from ratfit.jobs import FitRequest, fit_file
 
-    if not options["time_limit"] >= 0:
+    if options["time_limit"] is not None and not options["time_limit"] >= 0:
         raise click.UsageError(f"--time-limit must be >= 0 seconds, got {options['time_limit']}")
     params = pop_fit_params(options)
     check_size_flags(params, shared=shared)

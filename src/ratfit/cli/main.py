@@ -344,7 +344,9 @@ def _report_table(results, out: Path | None, verified_as: str | None) -> None:
             ((verified_as or "yes") + ("*" if r.time_limited else "")) if s["verified"]
             else "NO", _fmt(s["max_violation"]),
             _fmt(s["linf"]),
-            _fmt(s["l2"]), _fmt(s["max_rel_error"]), _fmt(s["delta"]), str(s["qp_solves"]),
+            _fmt(s["l2"]), _fmt(s["max_rel_error"]), _fmt(s["delta"]),
+            str(s["qp_solves"]) if s.get("work_limit") is None
+            else f"{s['qp_solves']}/{s['work_limit']}",
             f"{s['seconds']:.3f}",
         ])
     table, dropped = fit_table(con, "ratfit fit", cols, rows,
@@ -352,6 +354,10 @@ def _report_table(results, out: Path | None, verified_as: str | None) -> None:
     con.print(table)
     if dropped:
         con.print(f"(narrow terminal: {', '.join(dropped)} in --json)", highlight=False)
+    budgets = {r.work_limit for r in results if r.work_limit is not None}
+    if budgets and "QPs" not in dropped:
+        con.print(f"QPs: solves / budget per channel (--work-limit {max(budgets)})",
+                  highlight=False)
     for r in results:
         if not r.success:
             con.print(f"[bold red]{esc(r.channel)}[/]: {esc(r.message)}")

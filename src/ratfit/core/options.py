@@ -31,6 +31,7 @@ from ratfit.errors import InputError
 __all__ = [
     "DEFAULT_MAX_TOTAL",
     "DEFAULT_TIME_LIMIT",
+    "DEFAULT_WORK_LIMIT",
     "FIT_OPTIONS",
     "FORMULATIONS",
     "FitOptions",
@@ -48,9 +49,13 @@ FORMULATIONS = ("auto", "arnoldi", "basis")
 SPLIT_RULES = ("min-m", "error")
 VARIABLE_CHOICES = ("auto", "x", "log")
 DEFAULT_MAX_TOTAL = 100
-# Seconds a search may spend per channel before it stops with what it has (a
-# search that finds nothing otherwise walks every total up to max_total).
-DEFAULT_TIME_LIMIT = 120.0
+# Wall-clock seconds per channel: none by default (the answer would depend on the
+# machine's load); the work limit bounds the search instead.
+DEFAULT_TIME_LIMIT: float | None = None
+# QP solves a search may spend per channel before it stops with what it has (a
+# search that finds nothing otherwise walks every total up to max_total). A count,
+# not seconds: the same command stops at the same split on any load and any --jobs.
+DEFAULT_WORK_LIMIT = 4000
 
 
 def _families() -> tuple[str, ...]:
@@ -217,7 +222,12 @@ FIT_OPTIONS: dict[str, Option] = _opts(
            "arnoldi: data-orthonormal bases (smallest fits); basis: the seed's matrix; auto: "
            "arnoldi where it applies.", FORMULATIONS, label="formulation"),
     Option("time_limit", "seconds", DEFAULT_TIME_LIMIT,
-           "Seconds per channel before the search stops with what it has (0: no limit)."),
+           "Wall-clock seconds per channel before the search stops with what it has "
+           "(default: none). With a clock the answer can depend on the machine's load."),
+    Option("work_limit", "int", DEFAULT_WORK_LIMIT,
+           "QP solves per channel before the search stops with what it has: a "
+           "deterministic budget (the same answer on any load and any --jobs).",
+           minimum=1),
     Option("variable", "choice", "auto",
            "p, q polynomials in x or in log x (auto: also log x for positive 1-D data over "
            "more than 3 decades, keeping the smaller fit).", VARIABLE_CHOICES, label="variable"),
@@ -277,7 +287,8 @@ class FitOptions:
     Parameters
     ----------
     basis, index_set, domain, n, m, total, min_total, max_total, strategy, split_rule, \
-solver, cross_check, active_set, jobs, callback, formulation, time_limit, variable, warm_start
+solver, cross_check, active_set, jobs, callback, formulation, time_limit, work_limit, \
+variable, warm_start
         As for :class:`~ratfit.fitting.search.RationalFitter` (:data:`FIT_OPTIONS`).
 
     Examples
@@ -310,6 +321,7 @@ solver, cross_check, active_set, jobs, callback, formulation, time_limit, variab
     callback: Callable[[Any], None] | None = field(default=None, compare=False)
     formulation: str = "auto"
     time_limit: float | None = DEFAULT_TIME_LIMIT
+    work_limit: int | None = DEFAULT_WORK_LIMIT
     variable: str = "auto"
     warm_start: bool = True
 

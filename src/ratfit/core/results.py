@@ -45,6 +45,8 @@ class FitResult:
         Every split tested, with its status and deciding method.
     time_limited : bool
         The time limit ended the search: a verified fit whose total may not be minimal.
+    work_limit : int or None
+        The search's budget of QP solves for this channel (``qp_solves`` were spent).
 
     Examples
     --------
@@ -83,6 +85,8 @@ class FitResult:
     infeasible_proof: dict | None = None
     # The search's time limit ran out: the fit is verified, its total not shown minimal.
     time_limited: bool = False
+    # The search's work budget (QP solves per channel; None: none), next to qp_solves.
+    work_limit: int | None = None
 
     @property
     def total(self) -> int:
@@ -132,6 +136,7 @@ class FitResult:
             "coef_norm": _num(self.coef_norm),
             "active_set_size": self.active_set_size,
             "qp_solves": self.qp_solves,
+            "work_limit": self.work_limit,
             "solver": self.solver,
             "solver_status": self.solver_status,
             "decided_by": self.decided_by,

@@ -64,6 +64,7 @@ from ratfit.core.estimator import Regressor
 from ratfit.core.options import (  # noqa: F401  (re-exported: where they used to live)
     DEFAULT_MAX_TOTAL,
     DEFAULT_TIME_LIMIT,
+    DEFAULT_WORK_LIMIT,
     FIT_OPTIONS,
     FORMULATIONS,
     SEGMENT_OPTIONS,
@@ -159,14 +160,20 @@ class RationalFitter(Regressor):
         that total, and keeps the smaller verified fit (sqrt on 1e-15..1 needs
         10 coefficients in log x at 10 %, and has no fit up to 100 in x);
         otherwise x.
-    time_limit : float, optional, default 120
-        Seconds per channel; when they run out the search stops between splits
-        and says so (status 1, or the smallest verified fit so far flagged as
-        not proven minimal). None: no limit.
+    time_limit : float, optional
+        Wall-clock seconds per channel; when they run out the search stops
+        between splits and says so (status 1, or the smallest verified fit so
+        far flagged as not proven minimal). Default None: no clock, so the answer
+        does not depend on the machine's load.
+    work_limit : int, optional, default 4000
+        QP solves per channel (counted between splits, in the walk's order);
+        when they run out the search stops like at the time limit. A count, so
+        the same data and options give the same (n, m) and coefficients on any
+        load and with any ``jobs``. None: no limit.
     warm_start : bool, default True
-        Carry the binding rows of one split into the next split's active set
-        and start each channel's search at the previous channel's total. Only
-        the speed depends on it (the benchmarks and tests switch it off to compare).
+        Carry the binding rows of one split into the next split's active set.
+        Only the speed depends on it (the benchmarks and tests switch it off to
+        compare).
 
     Attributes
     ----------
@@ -203,7 +210,6 @@ class RationalFitter(Regressor):
     #: The class of this estimator's checked options: every constructor parameter
     #: is one of its fields (subclasses with options of their own extend it).
     options_type: ClassVar[type[FitOptions]] = FitOptions
-    _hint: int | None = None
 
     def __init__(
         self,
@@ -227,6 +233,7 @@ class RationalFitter(Regressor):
         callback: Callable[[Attempt], None] | None = None,
         formulation: str = "auto",
         time_limit: float | None = DEFAULT_TIME_LIMIT,
+        work_limit: int | None = DEFAULT_WORK_LIMIT,
         variable: str = "auto",
         warm_start: bool = True,
     ) -> None:
@@ -249,6 +256,7 @@ class RationalFitter(Regressor):
         self.callback = callback
         self.formulation = formulation
         self.time_limit = time_limit
+        self.work_limit = work_limit
         self.variable = variable
         self.warm_start = warm_start
 
@@ -380,11 +388,12 @@ class RationalFitter(Regressor):
             return self._fit_channel(space, seg, j, alone=alone)
         lg = self._fit_channel(log_space, seg, j, alone=alone)
         if not lg.success:
-            return self._fit_channel(space, seg, j, spent=lg.seconds, alone=alone)
+            return self._fit_channel(space, seg, j, spent=lg.seconds, solves=lg.qp_solves,
+                                     alone=alone)
         if lg.n + lg.m <= self.options_.min_total:
             return lg
         xs = self._fit_channel(space, seg, j, max_total=lg.n + lg.m - 1, spent=lg.seconds,
-                               alone=alone)
+                               solves=lg.qp_solves, alone=alone)
         return xs if xs.success else lg
 
     def _channel_threads(self, seg: Segments) -> int:
@@ -410,7 +419,7 @@ class RationalFitter(Regressor):
             vars(self._local).clear()  # a pool thread may have run another channel
             self._local.channel = j
             try:
-                return self._fit_either(space, log_space, seg, j, alone=True)
+                return self._fit_either(space, log_space, seg, j, alone=threads > 1)
             finally:
                 states[j] = self._channel_state()
 
@@ -472,16 +481,16 @@ class RationalFitter(Regressor):
         factors = value_scales(segments)
         work = scale_segments(segments, factors)
         log_space = self._log_space(space, segments)
-        self._hint: int | None = None
         for stale in ("_local", "_cancel"):  # left by an interrupted side-by-side fit
             self.__dict__.pop(stale, None)
         threads = self._channel_threads(work)
         with one_blas_thread():  # the search's own threads; BLAS pools only spin
-            if threads > 1:
+            if segments.n_channels > 1:
+                # Every channel with its own state, in threads or one after another:
+                # its answer depends neither on --jobs nor on the other channels.
                 results = self._fit_side_by_side(space, log_space, work, threads)
             else:
-                results = [self._fit_either(space, log_space, work, j)
-                           for j in range(segments.n_channels)]
+                results = [self._fit_either(space, log_space, work, 0)]
         verifier = self.search_parts(space, segments).verifier
         self.results_ = [
             unscale_result(r, segments, j, float(f), verifier)
@@ -537,10 +546,11 @@ class RationalFitter(Regressor):
         return self
 
     def _fit_channel(self, space: PolynomialSpace, seg: Segments, j: int,
-                     max_total: int | None = None, spent: float = 0.0,
+                     max_total: int | None = None, spent: float = 0.0, solves: int = 0,
                      alone: bool = False) -> FitResult:
         """``alone``: the channel runs in a thread beside others: its splits one at
-        a time, no hint from (or to) another channel."""
+        a time. ``spent`` seconds and ``solves`` QP solves were used by a search of
+        this channel in another variable."""
         t0 = time.perf_counter()
         o = self.options_
         clash = disjoint_repeats(seg, j)
@@ -552,9 +562,12 @@ class RationalFitter(Regressor):
             # ``spent``: seconds this channel already used in another variable; the
             # second search still gets a quarter of the budget.
             deadline = t0 + max(o.time_limit - spent, 0.25 * o.time_limit)
+        budget = None
+        if o.work_limit is not None:  # the second search still gets a quarter
+            budget = max(o.work_limit - solves, o.work_limit // 4)
         run = SearchEngine(o, self.search_parts(space, seg), space, seg, j,
                            jobs=1 if alone else None, deadline=deadline,
-                           cancel=getattr(self, "_cancel", None))
+                           cancel=getattr(self, "_cancel", None), budget=budget)
         if o.n is not None and o.m is not None:
             lo_t = hi_t = o.n + o.m
         elif o.total is not None:
@@ -568,16 +581,13 @@ class RationalFitter(Regressor):
             elif o.total is not None:
                 best = run.all_splits(lo_t)
             else:
+                # every channel's walk starts at min_total: a start taken from
+                # another channel's answer made the answer depend on channel order
                 best = run.exhaustive(lo_t, hi_t) if o.strategy == "exhaustive" else (
-                    run.staircase(lo_t, hi_t, start=self._hint if o.warm_start
-                                  and not alone else None)
-                )
+                    run.staircase(lo_t, hi_t))
         except _OutOfTime:
             return run.timed_out(lo_t, hi_t, time.perf_counter() - t0)
-        res = run.result(best, lo_t, hi_t, time.perf_counter() - t0)
-        if res.success and not alone:
-            self._hint = res.n + res.m  # the next channel's search starts there
-        return res
+        return run.result(best, lo_t, hi_t, time.perf_counter() - t0)
 
 
 class SystemFactory(Protocol):
@@ -755,7 +765,8 @@ class SearchEngine:
 
     def __init__(self, options: FitOptions, parts: SearchParts, space: PolynomialSpace,
                  seg: Segments, j: int, *, jobs: int | None = None,
-                 deadline: float | None = None, cancel: threading.Event | None = None):
+                 deadline: float | None = None, cancel: threading.Event | None = None,
+                 budget: int | None = None):
         self.options = options
         self.space = space
         self.seg = seg
@@ -770,6 +781,7 @@ class SearchEngine:
         self.active_set = parts.active_set if parts.active_set is not None \
             else options.active_set
         self.deadline = deadline
+        self.budget = budget  # QP solves (None: no limit), checked between batches
         self.cancel = cancel
         # distinct points, from the system's sort order (np.unique on rows is slow)
         order = getattr(self.system, "_order", None)
@@ -788,16 +800,14 @@ class SearchEngine:
                                         like=self.system)
 
     def _solve(self, system: RowSystem, n: int, m: int, form: str) -> Candidate:
+        # the warm rows of the batch's start (test_many): every split of a batch gets
+        # the same ones, whichever thread runs it and in whatever order
         warm = self.warm if self.options.warm_start else None
         att, system = solve_pole_free(
             system, n, m, cuts=self.cuts, solver=self.options.solver,
             cross_check=self.options.cross_check, active_set=self.active_set, warm_rows=warm,
             deadline=self.deadline,
         )
-        if att.active_rows is not None:
-            # the data rows binding at this split's solution start the next split's
-            rows = att.active_rows
-            self.warm = rows[rows < 2 * self.seg.n_points]
         att.formulation = form
         rf = ver = None
         if att.timed_out:
@@ -904,6 +914,8 @@ class SearchEngine:
             raise KeyboardInterrupt  # another channel's thread was interrupted
         if self.cache and self.deadline is not None and time.perf_counter() > self.deadline:
             raise _OutOfTime
+        if self.cache and self.budget is not None and self.solves() >= self.budget:
+            raise _OutOfTime
         n_max = max(s[0] for s in todo)
         m_max = max(s[1] for s in todo)
         if not self.parts.systems.per_split:
@@ -920,6 +932,11 @@ class SearchEngine:
         for s, out in zip(todo, outs, strict=True):
             cut = cut or out[0].timed_out  # cut short: "failed", which rules out nothing
             self.cache[s] = out
+            rows = out[0].active_rows
+            if rows is not None:
+                # the data rows binding at the batch's last solution (in the batch's
+                # order, not the threads') start the next batch's splits
+                self.warm = rows[rows < 2 * self.seg.n_points]
             if out[0].status == "infeasible":
                 self.infeasible.append(s)
             if self.options.callback is not None:
@@ -947,8 +964,23 @@ class SearchEngine:
         return bool(secs) and sum(secs) / len(secs) > 0.02
 
     def _batch_width(self) -> int:
-        """How many splits to test at once: speculative work only pays when parallel."""
-        return self.jobs if self._parallel() else 1
+        """How many splits the walk tests at once: one. A width from ``jobs`` (or
+        from the QPs' measured seconds) changed which splits were tested, their warm
+        rows and, near the feasibility boundary, the answer: the walk is the same
+        for any ``jobs`` and load; threads serve the batches whose splits are fixed
+        (every split of a total: ``total``, ``strategy="exhaustive"``,
+        ``split_rule="error"``)."""
+        return 1
+
+    def solves(self) -> int:
+        """QP solves spent so far (the work budget's unit)."""
+        seen: set[int] = set()
+        total = 0
+        for att, _, _ in self.cache.values():
+            if id(att) not in seen:  # aliases share one attempt
+                seen.add(id(att))
+                total += att.qp_solves
+        return total
 
     def ok(self, s: tuple[int, int]) -> bool:
         self.test_many([s])
@@ -1192,6 +1224,7 @@ class SearchEngine:
             history=history,
             disagreements=disagreements,
             infeasible_proof=proof if status == 1 else None,
+            work_limit=self.budget,
         )
 
     def coverage(self, lo: int, hi: int) -> str:
@@ -1232,10 +1265,14 @@ class SearchEngine:
     def timed_out(self, lo: int, hi: int, secs: float) -> FitResult:
         """The result when the time budget ran out: the smallest verified fit so far
         (not proven minimal), else status 1 without any claim of impossibility."""
-        limit = float(self.options.time_limit or 0.0)
         good = sorted((s for s in self.cache if self.ok(s)), key=lambda s: (sum(s), s[1]))
         tried = max((sum(s) for s in self.cache), default=lo)
-        note = (f"time limit of {limit:g} s reached after {len(self.cache)} split(s), "
+        if self.budget is not None and self.solves() >= self.budget:
+            what, raise_it = (f"work limit of {self.budget} QP solves", "--work-limit")
+        else:
+            limit = float(self.options.time_limit or 0.0)
+            what, raise_it = f"time limit of {limit:g} s", "--time-limit"
+        note = (f"{what} reached after {len(self.cache)} split(s), "
                 f"totals {lo}..{tried} of {lo}..{hi}")
         if good:
             res = self.result(good[:1], lo, hi, secs)
@@ -1245,7 +1282,7 @@ class SearchEngine:
         res = self.result([], lo, hi, secs, certify=False)
         return dataclasses.replace(
             res, time_limited=True, message=f"{STATUS_MESSAGES[1]}: {note}; no verified fit found "
-                         "(not a proof that none exists; raise --time-limit)")
+                         f"(not a proof that none exists; raise {raise_it})")
 
     def _closest(self) -> Candidate:
         """The best thing reached when nothing verified: smallest violation, else largest."""

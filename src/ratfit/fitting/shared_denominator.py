@@ -46,6 +46,7 @@ from ratfit.core.bases import PolynomialSpace
 from ratfit.core.estimator import Estimator
 from ratfit.core.options import (
     DEFAULT_TIME_LIMIT,
+    DEFAULT_WORK_LIMIT,
     FIT_OPTIONS,
     FitOptions,
     Option,
@@ -321,9 +322,12 @@ variable, warm_start
         Largest denominator tried.
     jobs : int, default 1
         Threads for the per-channel bisections.
-    time_limit : float, optional, default 120
-        Seconds for the whole search; when they run out it stops between QPs with
-        the smallest verified fit so far (not proven minimal) or none.
+    time_limit : float, optional
+        Wall-clock seconds for the whole search (default None: no clock); when they
+        run out it stops between QPs with the smallest verified fit so far (not
+        proven minimal) or none.
+    work_limit : int, optional, default 4000
+        QP solves for the whole search, the deterministic budget; the same stop.
 
     Attributes
     ----------
@@ -353,7 +357,8 @@ variable, warm_start
                  max_m: int = 30, solver: str = "quadprog", cross_check: str = "orth",
                  jobs: int | None = 1,
                  callback: Callable[[Attempt], None] | None = None,
-                 time_limit: float | None = DEFAULT_TIME_LIMIT, n: int | None = None,
+                 time_limit: float | None = DEFAULT_TIME_LIMIT,
+                 work_limit: int | None = DEFAULT_WORK_LIMIT, n: int | None = None,
                  total: int | None = None, min_total: int = 2, max_total: int | None = None,
                  strategy: str = "staircase", split_rule: str = "min-m",
                  active_set: bool | None = None, formulation: str = "auto",
@@ -363,6 +368,7 @@ variable, warm_start
         self.solver, self.cross_check = solver, cross_check
         self.jobs, self.callback = jobs, callback
         self.time_limit = time_limit
+        self.work_limit = work_limit
         self.n, self.total, self.min_total, self.max_total = n, total, min_total, max_total
         self.strategy, self.split_rule, self.active_set = strategy, split_rule, active_set
         self.formulation, self.variable, self.warm_start = formulation, variable, warm_start
@@ -427,6 +433,8 @@ class _SharedSearch:
         t0 = time.perf_counter()
         if self.cache and self.deadline is not None and t0 > self.deadline:
             raise _OutOfTime
+        if self.cache and self.f.work_limit is not None and self._solves() >= self.f.work_limit:
+            raise _OutOfTime
         try:
             q0 = shared_sk_denominator(self.space, self.seg, n, m)
             system = SharedSystem(self.space, self.seg, n, m, q0)
@@ -488,11 +496,19 @@ class _SharedSearch:
             return self._timed_out(out)
         return self._result(self.best, self.bounds, self.big, time.perf_counter() - t0)
 
+    def _solves(self) -> int:
+        with self.lock:
+            return sum(t.att.qp_solves for t in self.cache.values())
+
     def _timed_out(self, out: SharedFit) -> SharedFit:
         """The result when the time budget ran out: the smallest verified fit so far,
         not proven minimal, else no fit without any claim of impossibility."""
-        limit = float(self.f.time_limit or 0.0)
-        note = f"time limit of {limit:g} s reached after {len(self.cache)} QP test(s)"
+        if self.f.work_limit is not None and self._solves() >= self.f.work_limit:
+            note = (f"work limit of {self.f.work_limit} QP solves reached after "
+                    f"{len(self.cache)} QP test(s)")
+        else:
+            limit = float(self.f.time_limit or 0.0)
+            note = f"time limit of {limit:g} s reached after {len(self.cache)} QP test(s)"
         if out.success:
             results = [dataclasses.replace(r, time_limited=True,
                                            message=f"{r.message}; {note}: the total may not "
@@ -501,7 +517,7 @@ class _SharedSearch:
             results = [dataclasses.replace(
                 r, time_limited=True, status=1, success=False,
                 message=f"{STATUS_MESSAGES[1]}: {note}; no shared-denominator fit verified "
-                        "(not a proof that none exists; raise the time limit)")
+                        "(not a proof that none exists; raise the limit)")
                 for r in out.results]
         return dataclasses.replace(out, results=results, proven=False)
 
