@@ -60,3 +60,28 @@ def test_lp_clean_infeasibility_is_still_a_verdict():
     """x > 0 and -x > 0 in one unknown: no direction, and the LP says so."""
     An = np.array([[1.0, 0.0], [-1.0, 0.0], [0.0, 1.0], [0.0, -1.0]])
     assert qpmod._lp_margin(An) is None
+
+
+def test_a_tight_certificate_decides_without_the_cross_checks(monkeypatch):
+    """Most splits of a walk are infeasible; a certificate y >= 0 with A' y ~ 0 (bound
+    below 1e-10) decides them without DAQP and HiGHS, and a feasible split never has
+    one."""
+    from ratfit.demos.addendum import addendum_segments
+
+    calls: list[str] = []
+    real = qpmod._cross_check
+
+    def counted(A, kind, time_limit=None):
+        calls.append(kind)
+        return real(A, kind, time_limit)
+
+    monkeypatch.setattr(qpmod, "_cross_check", counted)
+    r = RationalFitter(jobs=1).fit(addendum_segments()).result_
+    assert (r.n, r.m) == (13, 13)
+    decided = [h["decided_by"] for h in r.history if h["status"] == "infeasible"]
+    assert decided and all(d == "quadprog+certificate" for d in decided)
+    assert calls == []
+    # rows with a direction (x > 0 and x + y > 0): no certificate
+    assert qpmod.gordan_bound(np.array([[1.0, 0.0], [1.0, 1.0], [2.0, -1.0]])) > 1e-3
+    # rows without one (x > 0 and -x > 0): a tight certificate
+    assert qpmod.gordan_bound(np.array([[1.0, 0.2], [-1.0, -0.2], [0.5, 0.1]])) < 1e-12

@@ -295,6 +295,14 @@ def solve_fixed(
                 kinds.append("lp")
             if delta < 1e-6:
                 kinds += [k for k in ("orth", "lp") if k not in kinds]
+            if (kinds and sol.status == "infeasible"
+                    and gordan_bound(A) <= LP_CERTIFICATE_TOL):
+                # a tight certificate that no direction exists (the LP's own test,
+                # from a small nonnegative least squares): the solvers' checks after
+                # it would only say the same, at 10x the cost of the QP
+                kinds = []
+                verdicts += 1
+                att.decided_by = f"{solver}+certificate"
             for kind in kinds:
                 try:
                     c = _cross_check(A, kind, None if deadline is None else
@@ -571,6 +579,85 @@ def _lp_margin(An: Array, time_limit: float | None = None) -> Array | None:
             raise _Undecided("LP optimum 0 without a tight dual certificate")
         return None
     return np.asarray(res.x[:k])
+
+
+def gordan_bound(A: Array) -> float:
+    """An upper bound on the margin of any direction for the rows of ``A``, from a
+    certificate y >= 0 with A' y ~ 0 (Gordan's alternative): the rows are normalised
+    and orthonormalised as in the cross checks, and y minimises
+    ||W' y||^2 + (sum y - 1)^2 over y >= 0 (nonnegative least squares). Below
+    :data:`LP_CERTIFICATE_TOL` no c with |c| <= 1 has every (W c)_i above it: the
+    rows are infeasible by the same test as the LP's dual. inf when y is not small."""
+    norms = np.linalg.norm(A, axis=1)
+    An = A / np.where(norms > 0, norms, 1.0)[:, None]
+    if An.shape[0] <= An.shape[1]:
+        return float("inf")
+    # the orthonormal basis of the rows' column space from a QR (the cone, hence the
+    # bound, is the same for any orthonormal basis of it; an SVD costs 5x more),
+    # from an SVD where the columns are dependent
+    W, R = np.linalg.qr(An)
+    rd = np.abs(np.diag(R))
+    if not rd.min() > 1e-12 * rd.max():
+        W, sv, _ = np.linalg.svd(An, full_matrices=False)
+        W = W[:, sv > 1e-15 * sv[0]]
+    wn = np.linalg.norm(W, axis=1)
+    Wn = W / np.where(wn > 0, wn, 1.0)[:, None]
+    y = _nnls_hull(Wn)
+    total = float(y.sum())
+    if not total > 0:
+        return float("inf")
+    r = Wn.astype(np.longdouble).T @ (y / total).astype(np.longdouble)
+    return float(np.abs(r).sum())
+
+
+def _nnls_hull(P: Array, max_iter: int | None = None) -> Array:
+    """y >= 0 minimising ||P' y||^2 + (sum y - 1)^2 (Lawson and Hanson's active set on
+    M = [P'; 1'], d = [0; 1]): sum y ~ 1 and P' y ~ 0 when the origin lies in the
+    convex hull of the rows of P. The passive set's least squares go through its
+    small Gram matrix (fast); the last one through lstsq (accurate)."""
+    rows, k = P.shape
+    M = np.vstack([P.T, np.ones((1, rows))])
+    d = np.zeros(k + 1)
+    d[-1] = 1.0
+    y = np.zeros(rows)
+    free = np.zeros(rows, dtype=bool)
+    tol = 1e-12
+
+    def solve(idx: NDArray[np.int64], exact: bool = False) -> Array:
+        Mp = M[:, idx]
+        if not exact:
+            try:
+                return np.asarray(np.linalg.solve(Mp.T @ Mp, Mp[-1]), dtype=np.float64)
+            except np.linalg.LinAlgError:
+                pass
+        return np.asarray(np.linalg.lstsq(Mp, d, rcond=None)[0], dtype=np.float64)
+
+    for _ in range(max_iter or 6 * (k + 1)):
+        grad = M.T @ (d - M @ y)
+        grad[free] = -np.inf
+        j = int(np.argmax(grad))
+        if grad[j] <= tol:
+            break
+        free[j] = True
+        for _inner in range(k + 2):
+            idx = np.flatnonzero(free)
+            z = np.zeros(rows)
+            z[idx] = solve(idx)
+            if np.all(z[idx] > 0):
+                y = z
+                break
+            neg = idx[z[idx] <= 0]
+            step = float(np.min(y[neg] / (y[neg] - z[neg])))
+            y = y + step * (z - y)
+            free &= y > tol
+            y[~free] = 0.0
+    idx = np.flatnonzero(free & (y > 0))
+    if idx.size:
+        z = np.zeros(rows)
+        z[idx] = solve(idx, exact=True)
+        if np.all(z[idx] >= 0):
+            y = z
+    return y
 
 
 def margin_bound(An: Array, marginals: Array) -> float:
