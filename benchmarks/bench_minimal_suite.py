@@ -14,7 +14,8 @@ segment, no pole in the domain, ratfit.core.verify). The LP's vertex sits on
 the boundary, so at margins near its tolerance (1e-8) it finds directions that
 do not verify: every split is also fitted alone (``RationalFitter(n=, m=)``,
 both formulations), which is what catches a walk that ruled a split out by a
-wrong "infeasible". "minimal" is yes when neither finds a fit below T. Data: ../shared/data (NIST StRD sets, the NIST ITS-90 type K table).
+wrong "infeasible". "minimal" is yes when neither finds a fit below T.
+Data: ../shared/data (NIST StRD sets, the NIST ITS-90 type K table).
 
 Run:  python benchmarks/bench_minimal_suite.py [--below 3]
 """
