@@ -25,7 +25,12 @@ from typing import Any, Self
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from ratfit.brdf.options import BRDF_SOLVER, UNKNOWN_PARAMETRIZATION, BRDFOptions
+from ratfit.brdf.options import (
+    BRDF_SOLVER,
+    BRDF_TIME_LIMIT,
+    UNKNOWN_PARAMETRIZATION,
+    BRDFOptions,
+)
 from ratfit.brdf.parametrizations import (
     check_dirs,
     find_parametrization,
@@ -611,8 +616,9 @@ class BRDFFitter(RationalFitter):
     def __init__(self, *, parametrization: str = UNKNOWN_PARAMETRIZATION,
                  positive_q: bool = False, physical: bool = True, polish: bool = True,
                  used_coords: tuple[int, ...] | None = None,
-                 solver: str = BRDF_SOLVER, **params: Any) -> None:
-        super().__init__(solver=solver, **params)
+                 solver: str = BRDF_SOLVER, time_limit: float | None = BRDF_TIME_LIMIT,
+                 **params: Any) -> None:
+        super().__init__(solver=solver, time_limit=time_limit, **params)
         self.parametrization = parametrization
         self.positive_q = positive_q
         self.physical = physical

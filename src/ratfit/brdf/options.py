@@ -11,11 +11,18 @@ from ratfit.core.options import FIT_OPTIONS, FitOptions, Option, check_options_c
 from ratfit.core.solvers import first_available
 from ratfit.errors import InputError
 
-__all__ = ["BRDF_OPTIONS", "BRDF_SOLVER", "BRDFOptions", "UNKNOWN_PARAMETRIZATION"]
+__all__ = ["BRDF_OPTIONS", "BRDF_SOLVER", "BRDF_TIME_LIMIT", "BRDFOptions",
+           "UNKNOWN_PARAMETRIZATION"]
 
 # DAQP first: quadprog was seen looping forever inside one call on a BRDF QP with
 # validity rows (1217 x 37, garnet_red) that DAQP solves in 6 ms.
 BRDF_SOLVER = first_available(("daqp", "quadprog"))
+#: Wall-clock seconds per channel a BRDF fit takes by default (``fit`` has none: its
+#: default is the work budget alone). Without it the validity proof's polish and
+#: full-proof re-search are unbounded in time: cayman's default fit ran past 10 min
+#: (57 s before the work budget replaced the clock; 169 s with this limit, measured
+#: 2026-11-25 under load). A work-counted bound for them is open (issue 26/28).
+BRDF_TIME_LIMIT = 120.0
 #: The parametrization of coordinates no registry entry describes: the plain pole check.
 UNKNOWN_PARAMETRIZATION = "UNKNOWN"
 
@@ -57,7 +64,7 @@ BRDF_OPTIONS = extend_spec(
     Option("used_coords", "indices", None,
            "Coordinates of the parametrization the data holds (None: all).",
            validator=_check_coords, cli=False),
-    defaults={"solver": BRDF_SOLVER},
+    defaults={"solver": BRDF_SOLVER, "time_limit": BRDF_TIME_LIMIT},
 )
 
 
@@ -68,6 +75,7 @@ class BRDFOptions(FitOptions):
     SPEC: ClassVar = BRDF_OPTIONS
 
     solver: str = BRDF_SOLVER
+    time_limit: float | None = BRDF_TIME_LIMIT
     parametrization: str = UNKNOWN_PARAMETRIZATION
     positive_q: bool = False
     physical: bool = True
