@@ -65,6 +65,32 @@ class ChannelPoints:
         self.hi = np.ascontiguousarray(seg.hi[:, channel])
         self.n_points = seg.n_points
         self.order = np.lexsort(self.t.T[::-1])  # sorted along x0, then x1, ...
+        # orthonormal bases on (subsets of) the points, by the subset's size
+        self._bases: dict[int, tuple[NDArray[np.int64], Array]] = {}
+        self._lock = threading.Lock()
+
+    def data_basis(self, pick: NDArray[np.int64], k: int) -> Array:
+        """(len(pick), k) values at the points ``pick`` of the first k polynomials of
+        the space, orthonormal on them (unit weights, Arnoldi). Built once per subset
+        and grown geometrically; the first k columns do not depend on how many more
+        were built (the recurrence is sequential), so neither does any result."""
+        from ratfit.core.arnoldi import ArnoldiBasis
+
+        with self._lock:
+            have = self._bases.get(pick.size)
+            if have is not None and np.array_equal(have[0], pick) and have[1].shape[1] >= k:
+                return have[1]
+            size = max(k, min(2 * (have[1].shape[1] if have is not None else 0), k + 16))
+            size = max(k, min(size, pick.size))
+            t = self.t[pick]
+            try:
+                Q = ArnoldiBasis.build(self.space, t, np.ones(pick.size), size)[1]
+            except InputError:
+                if size == k:
+                    raise
+                Q = ArnoldiBasis.build(self.space, t, np.ones(pick.size), k)[1]
+            self._bases[pick.size] = (pick.copy(), Q)
+            return Q
 
     def spread_subset(self, size: int) -> NDArray[np.int64]:
         """``size`` points spread along the data, plus the extreme segments."""
@@ -954,10 +980,15 @@ def sk_denominator(space: PolynomialSpace, seg: Segments, channel: int | Sequenc
 
     ``channel`` and ``n`` may be sequences: one q shared by several channels,
     each with its own numerator size, minimising the sum of their residuals.
-    ``as_function``: return the guess as a function of window points instead."""
-    from ratfit.core.arnoldi import ArnoldiBasis
-    from ratfit.errors import InputError
+    ``as_function``: return the guess as a function of window points instead
+    (a :class:`DenominatorGuess`, which keeps its values at the points it was
+    fitted on).
 
+    Each step needs orthonormal bases of v P_n / s and v P_m on the points: they
+    come from Householder QR of one basis orthonormal on the unweighted points
+    (the same polynomial spaces; cached on ``like``'s points, so a search builds it
+    once per channel, not eight times per split). Only the last step's q, and only
+    where it is asked for away from those points, gets an Arnoldi recurrence."""
     chans = [channel] if isinstance(channel, (int, np.integer)) else list(channel)
     sizes = [n] if isinstance(n, (int, np.integer)) else list(n)
     t_all = space.to_window(seg.x) if like is None else like.t
@@ -972,35 +1003,94 @@ def sk_denominator(space: PolynomialSpace, seg: Segments, channel: int | Sequenc
     lo, hi = seg.lo[np.ix_(pick, cols)], seg.hi[np.ix_(pick, cols)]
     scale = segment_scales(lo, hi)
     d = 0.5 * (lo + hi) / scale
+    t_fit = t_all if pick.size == seg.n_points else t
+    if m == 1:
+        # q is a constant: the guess is exactly 1 (the weights exactly uniform; a
+        # rounding-level ripple in them moves the interpolating polynomials of
+        # small data, NIST Thurber's (37, 1), out of their 1e-4 segments)
+        guess1 = DenominatorGuess(space, t_fit, np.ones(pick.size), np.ones(pick.size), 1)
+        return guess1 if as_function else guess1(t_all)
+    k = max(max(sizes), m)
+    try:
+        if like is not None:
+            Q0 = like.points.data_basis(pick, k)
+        else:
+            from ratfit.core.arnoldi import ArnoldiBasis
+
+            Q0 = ArnoldiBasis.build(space, t, np.ones(pick.size), k)[1]
+    except InputError:
+        return None
     v = np.ones(pick.size)
-    guess = None
+    guess: tuple[Array, Array, Array] | None = None  # (q at the points, its weights, b)
     for _ in range(steps):
-        try:
-            q_basis, V = ArnoldiBasis.build(space, t, v, m)
-            # min sum_c ||U_c a_c - D_c V b|| over ||b|| = 1: eliminate each a_c
-            # (U_c is orthonormal); the normal matrix (m x m) is enough for a guess.
-            G = np.zeros((m, m))
-            for c, nc in enumerate(sizes):
-                _, U = ArnoldiBasis.build(space, t, v / scale[:, c], nc)
-                DV = d[:, c, None] * V
-                W = U.T @ DV
-                G += DV.T @ DV - W.T @ W
-        except InputError:
+        V = _weighted_orthonormal(Q0[:, :m], v)
+        if V is None:
             break
-        _, vecs = np.linalg.eigh(G)
-        b = vecs[:, 0]
-        qv = (V @ b) / v
-        if not np.all(np.isfinite(qv)) or not np.any(qv):
-            break
-        if np.sum(qv > 0) < np.sum(qv < 0):
-            qv, b = -qv, -b
-        guess = (q_basis, b)
-        v = denominator_weights(qv, pick.size)
+        # min sum_c ||U_c a_c - D_c V b|| over ||b|| = 1: eliminate each a_c
+        # (U_c is orthonormal); the normal matrix (m x m) is enough for a guess.
+        G = np.zeros((m, m))
+        for c, nc in enumerate(sizes):
+            U = _weighted_orthonormal(Q0[:, :nc], v / scale[:, c])
+            if U is None:
+                break
+            DV = d[:, c, None] * V
+            W = U.T @ DV
+            G += DV.T @ DV - W.T @ W
+        else:
+            _, vecs = np.linalg.eigh(G)
+            b = vecs[:, 0]
+            qv = (V @ b) / v
+            if not np.all(np.isfinite(qv)) or not np.any(qv):
+                break
+            if np.sum(qv > 0) < np.sum(qv < 0):
+                qv, b = -qv, -b
+            guess = (qv, v, b)
+            v = denominator_weights(qv, pick.size)
+            continue
+        break
     if guess is None:
         return None
+    out = DenominatorGuess(space, t_fit, guess[0], guess[1], m)
     if as_function:  # evaluated where needed (large data: not at every point)
-        basis, coef = guess
-        return lambda pts: basis.evaluate(pts, coef, window=True)
+        return out
     with np.errstate(all="ignore"):
-        q_all = guess[0].evaluate(t_all, guess[1], window=True)
+        q_all = out(t_all)
     return q_all if np.all(np.isfinite(q_all)) and np.any(q_all) else None
+
+
+def _weighted_orthonormal(Q0: Array, w: Array) -> Array | None:
+    """Orthonormal columns spanning diag(w) Q0 (Householder QR), None when a column
+    is lost to the others (the Arnoldi build's rank test, relative to its norm)."""
+    X = w[:, None] * Q0
+    Q, R = np.linalg.qr(X)
+    rd = np.abs(np.diag(R))
+    if not np.all(rd > 1e-13 * np.maximum(np.linalg.norm(X, axis=0), 1e-300)):
+        return None
+    return np.asarray(Q, dtype=np.float64)
+
+
+class DenominatorGuess:
+    """The denominator guess of :func:`sk_denominator` as a function of window points.
+
+    At the points it was fitted on (``t``, the same array object) it returns the
+    values the last step found; elsewhere it evaluates q through an Arnoldi
+    recurrence built on first use (the values at ``t`` projected on a basis
+    orthonormal for the step's weights)."""
+
+    def __init__(self, space: PolynomialSpace, t: Array, values: Array, weights: Array,
+                 m: int) -> None:
+        self.space, self.t, self.values, self.weights, self.m = space, t, values, weights, m
+        self._fn: tuple[Any, Array] | None = None
+        self._lock = threading.Lock()
+
+    def __call__(self, pts: Array) -> Array:
+        if pts is self.t:
+            return self.values.copy()
+        with self._lock:
+            if self._fn is None:
+                from ratfit.core.arnoldi import ArnoldiBasis
+
+                basis, V = ArnoldiBasis.build(self.space, self.t, self.weights, self.m)
+                self._fn = (basis, V.T @ (self.weights * self.values))
+            basis, coef = self._fn
+        return np.asarray(basis.evaluate(pts, coef, window=True), dtype=np.float64)
