@@ -12,6 +12,9 @@ form a staircase, and the minimal total is found by walking it:
    one and the same m is tried again, otherwise m grows. Every infeasible
    answer rules out the whole column below it, so each test is at total
    best - 1 and the walk costs O(best) QPs instead of ALTA's O(best^2).
+   Column m below the best split's m is tested at the best total first
+   (best - m, m): the min-m rule needs that split anyway, and when it is
+   infeasible it rules out (best - 1 - m, m) as well.
 
 Split rule: among feasible splits of the minimal total, the one with the
 fewest denominator coefficients m (the closest to a polynomial: fewest
@@ -1089,6 +1092,7 @@ class SearchEngine:
             mm = m
             width = self._batch_width()
             while len(cols) < width and target - mm >= 1:
+                best = self._test_above(best, mm)
                 if not self.ruled_out(target - mm, mm):
                     cols.append((target - mm, mm))
                 mm += 1
@@ -1130,6 +1134,18 @@ class SearchEngine:
         feasible = sorted((s for s in self.cache if s[0] + s[1] == tot and self.ok(s)),
                           key=lambda s: s[1])
         return feasible[:1]
+
+    def _test_above(self, best: tuple[int, int], m: int) -> tuple[int, int]:
+        """Column m of the walk below ``best``'s total T, first at T itself when m <
+        best's m: (T - m, m) is a split the min-m rule has to test anyway, and when
+        it is infeasible it rules out (T - 1 - m, m) too (one QP for two splits; the
+        seed's walk: 34 splits where it took 46). Verified, it is the better split of
+        T (fewer denominator coefficients); the walk goes on with column m either way.
+        """
+        tot = best[0] + best[1]
+        if m >= best[1] or tot - m < 1 or self.ruled_out(tot - m, m):
+            return best
+        return (tot - m, m) if self.ok((tot - m, m)) else best
 
     def _choose(self, good: list[tuple[int, int]]) -> list[tuple[int, int]]:
         if not good:
