@@ -610,10 +610,13 @@ def _lp_margin(An: Array, time_limit: float | None = None) -> Array | None:
 def gordan_bound(A: Array) -> float:
     """An upper bound on the margin of any direction for the rows of ``A``, from a
     certificate y >= 0 with A' y ~ 0 (Gordan's alternative): the rows are normalised
-    and orthonormalised as in the cross checks, and y minimises
-    ||W' y||^2 + (sum y - 1)^2 over y >= 0 (nonnegative least squares). Below
-    :data:`LP_CERTIFICATE_TOL` no c with |c| <= 1 has every (W c)_i above it: the
-    rows are infeasible by the same test as the LP's dual. inf when y is not small."""
+    and orthonormalised as in the cross checks, and y comes from the dual of the
+    minimum-norm point of their convex hull (one small QP, :func:`_dual_hull`), or,
+    when that y is not tight, minimises ||W' y||^2 + (sum y - 1)^2 over y >= 0
+    (nonnegative least squares). Below :data:`LP_CERTIFICATE_TOL` no c with |c| <= 1
+    has every (W c)_i above it: the rows are infeasible by the same test as the LP's
+    dual. Whichever way y was found, the bound is computed from y itself, in extended
+    precision. inf when y is not small."""
     norms = np.linalg.norm(A, axis=1)
     An = A / np.where(norms > 0, norms, 1.0)[:, None]
     if An.shape[0] <= An.shape[1]:
@@ -628,12 +631,56 @@ def gordan_bound(A: Array) -> float:
         W = W[:, sv > 1e-15 * sv[0]]
     wn = np.linalg.norm(W, axis=1)
     Wn = W / np.where(wn > 0, wn, 1.0)[:, None]
-    y = _nnls_hull(Wn)
+    bound = _hull_bound(Wn, _dual_hull(Wn))
+    if bound <= LP_CERTIFICATE_TOL:
+        return bound
+    return min(bound, _hull_bound(Wn, _nnls_hull(Wn)))
+
+
+def _hull_bound(Wn: Array, y: Array | None) -> float:
+    """||Wn' y||_1 / sum y in extended precision (inf without a usable y)."""
+    if y is None:
+        return float("inf")
     total = float(y.sum())
     if not total > 0:
         return float("inf")
-    r = Wn.astype(np.longdouble).T @ (y / total).astype(np.longdouble)
+    sup = np.flatnonzero(y)  # its zeros add nothing
+    r = Wn[sup].astype(np.longdouble).T @ (y[sup] / total).astype(np.longdouble)
     return float(np.abs(r).sum())
+
+
+def _dual_hull(P: Array) -> Array | None:
+    """y >= 0 (sum ~ 1) with P' y ~ 0 when the origin lies in the convex hull of the
+    rows of P, from the dual of the hull's minimum-norm point: max s - ||u||^2 / 2
+    subject to P u >= s, a QP in k + 1 unknowns whose multipliers are y (quadprog,
+    in C: a few times cheaper than the NNLS's Python loop on a walk's splits). The
+    multipliers are then polished by least squares on their support (the NNLS's
+    last step). None when the solver fails; the caller checks y either way."""
+    try:
+        import quadprog
+    except ImportError:  # pragma: no cover - a core dependency
+        return None
+    rows, k = P.shape
+    G = np.eye(k + 1)
+    G[-1, -1] = 1e-6  # s enters linearly; quadprog needs a positive definite G
+    a = np.zeros(k + 1)
+    a[-1] = 1.0
+    C = np.ascontiguousarray(np.hstack([P, -np.ones((rows, 1))]).T)
+    try:
+        lag = quadprog.solve_qp(G, a, C, np.zeros(rows), 0)[4]
+    except ValueError:
+        return None
+    y = np.maximum(np.asarray(lag, dtype=np.float64), 0.0)
+    sup = np.flatnonzero(y)
+    if sup.size:
+        M = np.vstack([P[sup].T, np.ones((1, sup.size))])
+        d = np.zeros(k + 1)
+        d[-1] = 1.0
+        z = np.linalg.lstsq(M, d, rcond=None)[0]
+        if np.all(np.isfinite(z)) and np.all(z >= 0):
+            y = np.zeros(rows)
+            y[sup] = z
+    return y
 
 
 def _nnls_hull(P: Array, max_iter: int | None = None) -> Array:
