@@ -36,8 +36,8 @@ from ratfit.core.systems import (
 from ratfit.errors import InputError
 
 __all__ = [
-    "ArnoldiSystem", "Attempt", "ConstraintSystem", "CROSS_CHECKS", "sk_denominator", "solve_fixed",
-    "solve_pole_free",
+    "ArnoldiSystem", "Attempt", "ConstraintSystem", "CROSS_CHECKS", "certified_infeasible",
+    "sk_denominator", "solve_fixed", "solve_pole_free",
 ]
 
 Array = NDArray[np.float64]
@@ -426,6 +426,55 @@ def _delta_from(s: NDArray[Any], shape: tuple[int, int]) -> tuple[float, float, 
     return smin / smax, smin, smax
 
 
+# The seed's matrix decides a split alone (certified_infeasible) only down to this
+# delta = 1 / cond(A(n, m)): the orthonormal basis its certificate is measured in is then
+# accurate to ~1e-12, far below the certificate's 1e-10.
+SCREEN_MIN_DELTA = 1e-5
+
+
+def certified_infeasible(system: RowSystem, n: int, m: int, *, solver: str = "quadprog",
+                         warm_rows: NDArray[np.int64] | None = None) -> Attempt | None:
+    """A Gordan certificate on the rows :func:`solve_fixed` starts with: an "infeasible"
+    Attempt when it is tight (:func:`gordan_bound` <= :data:`LP_CERTIFICATE_TOL`: no
+    direction meets those rows, so none meets every row, and no pole-free one either),
+    else a "failed" one that decides nothing (its QP, the certificate's dual, still
+    counts toward the work budget); None when not attempted.
+
+    The certificate's test does not depend on the coordinates of c (it is taken in an
+    orthonormal basis of the rows' span, after scaling each row to 1), so the seed's
+    matrix, shared by every split of a channel, can rule a split out before the split's
+    own weighted system is built; it is used only where it is well conditioned
+    (delta >= :data:`SCREEN_MIN_DELTA`). Every other split, and any that has a point
+    here, is left to :func:`solve_pole_free` as before.
+    """
+    t0 = time.perf_counter()
+    system.prepare(n, m)
+    delta, smin, smax = system.conditioning(n, m)
+    if not delta >= SCREEN_MIN_DELTA:
+        return None
+    k = n + m
+    if system.n_points > max(300, 8 * k):
+        in_set = np.zeros(system.n_rows, dtype=bool)
+        in_set[system.initial_rows(max(4 * k, 64))] = True
+        if warm_rows is not None and warm_rows.size:
+            in_set[warm_rows[(warm_rows >= 0) & (warm_rows < system.n_rows)]] = True
+        idx = np.flatnonzero(in_set)
+    else:
+        idx = np.arange(system.n_rows)
+    A = system.rows(n, m, idx)
+    bound = gordan_bound(A, thorough=False)
+    decided = bound <= LP_CERTIFICATE_TOL
+    return Attempt(n, m, "infeasible" if decided else "failed",
+                   solver_status="infeasible" if decided else "",
+                   decided_by="certificate" if decided else "",
+                   formulation="basis", delta=delta, sigma_min=smin, sigma_max=smax,
+                   active_set_size=int(idx.size), qp_solves=1,
+                   seconds=time.perf_counter() - t0,
+                   messages=[f"Gordan certificate on the seed's matrix: bound {bound:.3g}"
+                             + (" (decided before the weighted form was built)" if decided
+                                else ", not tight: decided by the weighted form")])
+
+
 def solve_pole_free(
     system: RowSystem,
     n: int,
@@ -607,7 +656,7 @@ def _lp_margin(An: Array, time_limit: float | None = None) -> Array | None:
     return np.asarray(res.x[:k])
 
 
-def gordan_bound(A: Array) -> float:
+def gordan_bound(A: Array, thorough: bool = True) -> float:
     """An upper bound on the margin of any direction for the rows of ``A``, from a
     certificate y >= 0 with A' y ~ 0 (Gordan's alternative): the rows are normalised
     and orthonormalised as in the cross checks, and y comes from the dual of the
@@ -616,7 +665,8 @@ def gordan_bound(A: Array) -> float:
     (nonnegative least squares). Below :data:`LP_CERTIFICATE_TOL` no c with |c| <= 1
     has every (W c)_i above it: the rows are infeasible by the same test as the LP's
     dual. Whichever way y was found, the bound is computed from y itself, in extended
-    precision. inf when y is not small."""
+    precision. inf when y is not small. ``thorough=False``: the dual's y alone (a
+    quick test that may miss a certificate the NNLS would find)."""
     norms = np.linalg.norm(A, axis=1)
     An = A / np.where(norms > 0, norms, 1.0)[:, None]
     if An.shape[0] <= An.shape[1]:
@@ -632,7 +682,7 @@ def gordan_bound(A: Array) -> float:
     wn = np.linalg.norm(W, axis=1)
     Wn = W / np.where(wn > 0, wn, 1.0)[:, None]
     bound = _hull_bound(Wn, _dual_hull(Wn))
-    if bound <= LP_CERTIFICATE_TOL:
+    if bound <= LP_CERTIFICATE_TOL or not thorough:
         return bound
     return min(bound, _hull_bound(Wn, _nnls_hull(Wn)))
 
