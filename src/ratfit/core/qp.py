@@ -67,6 +67,7 @@ class ChannelPoints:
         self.order = np.lexsort(self.t.T[::-1])  # sorted along x0, then x1, ...
         # orthonormal bases on (subsets of) the points, by the subset's size
         self._bases: dict[int, tuple[NDArray[np.int64], Array]] = {}
+        self._spread: dict[int, NDArray[np.int64]] = {}
         self._lock = threading.Lock()
 
     def data_basis(self, pick: NDArray[np.int64], k: int) -> Array:
@@ -96,10 +97,15 @@ class ChannelPoints:
         """``size`` points spread along the data, plus the extreme segments."""
         if size >= self.n_points:
             return np.arange(self.n_points)
+        have = self._spread.get(size)
+        if have is not None:
+            return have.copy()
         pick = self.order[spread_indices(self.n_points, size)]
         mid = 0.5 * (self.lo + self.hi)
         extra = [np.argmax(mid), np.argmin(mid), np.argmin(self.hi - self.lo)]
-        return np.unique(np.concatenate([pick, np.asarray(extra, dtype=np.int64)]))
+        out = np.unique(np.concatenate([pick, np.asarray(extra, dtype=np.int64)]))
+        self._spread[size] = out  # a search asks for a few sizes many times
+        return out.copy()
 
 
 class ConstraintSystem:
@@ -131,8 +137,12 @@ class ConstraintSystem:
         with self._lock:
             k = max(n_max, m_max)
             if k > self._k:
-                # Grow geometrically: a search asks for one more column at a time.
-                k = max(k, min(2 * self._k, k + 16))
+                # Grow geometrically (a search asks for one more column at a time), from
+                # 16 columns (each growth is a new TSQR), within the space's capacity.
+                need, k = k, max(k, min(max(2 * self._k, 16), k + 16))
+                cap = self.space.capacity()
+                if cap is not None:
+                    k = max(need, min(k, cap))
                 self.B = self.space.design(self.t, k, window=True)
                 self._cum_sq = np.cumsum(self.B**2, axis=1)
                 self._k = k
@@ -726,7 +736,12 @@ def _dual_hull(P: Array) -> Array | None:
         M = np.vstack([P[sup].T, np.ones((1, sup.size))])
         d = np.zeros(k + 1)
         d[-1] = 1.0
-        z = np.linalg.lstsq(M, d, rcond=None)[0]
+        try:  # a full support makes M square: LU is enough (and 3x cheaper)
+            if sup.size != k + 1:
+                raise np.linalg.LinAlgError
+            z = np.linalg.solve(M, d)
+        except np.linalg.LinAlgError:
+            z = np.linalg.lstsq(M, d, rcond=None)[0]
         if np.all(np.isfinite(z)) and np.all(z >= 0):
             y = np.zeros(rows)
             y[sup] = z
