@@ -266,7 +266,8 @@ def test_a_cross_check_that_breaks_down_proves_nothing(monkeypatch):
         raise qp._Undecided("the check's solver broke down")
 
     monkeypatch.setattr(qp, "_cross_check", broken)
-    monkeypatch.setattr(qp, "gordan_bound", lambda A: float("inf"))  # no certificate either
+    monkeypatch.setattr(qp, "gordan_bound",
+                        lambda A, thorough=True: float("inf"))  # no certificate either
     res = ratfit.fit(seg, solver="liar", max_total=6)
     assert not res.success and res.infeasible_proof is None
     assert {h["status"] for h in res.history} == {"failed"}

@@ -21,4 +21,10 @@ def test_gallop_steps_grow_by_half_and_the_answer_is_the_exhaustive_one() -> Non
     # balanced splits at totals 2, 3, 5, 8, 12, 18 (doubling steps: 2, 3, 5, 9, 17, 33)
     assert probes == [(1, 1), (2, 1), (3, 2), (4, 4), (6, 6), (9, 9)]
     assert walk.history[5]["status"] == "feasible"
-    assert len(walk.history) == 20 < len(every.history) == 91
+    # the walk below 15 tests column m at 15 first ((14, 1), (13, 2), (12, 3) infeasible
+    # rule out (13, 1), (12, 2), (11, 3)); (11, 4) verifies there, then (10, 4) at 14
+    # too: one split more than a walk straight down column 4, where the seed's data
+    # saves 11 (no split of the total below the bracket fits)
+    assert len(walk.history) == 21 < len(every.history) == 91
+    assert [(h["n"], h["m"]) for h in walk.history[9:14]] == [
+        (14, 1), (13, 2), (12, 3), (11, 4), (10, 4)]

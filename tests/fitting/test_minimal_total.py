@@ -79,9 +79,34 @@ def test_a_tight_certificate_decides_without_the_cross_checks(monkeypatch):
     r = RationalFitter(jobs=1).fit(addendum_segments()).result_
     assert (r.n, r.m) == (13, 13)
     decided = [h["decided_by"] for h in r.history if h["status"] == "infeasible"]
-    assert decided and all(d == "quadprog+certificate" for d in decided)
+    assert decided and all(d in ("certificate", "quadprog+certificate") for d in decided)
     assert calls == []
     # rows with a direction (x > 0 and x + y > 0): no certificate
     assert qpmod.gordan_bound(np.array([[1.0, 0.0], [1.0, 1.0], [2.0, -1.0]])) > 1e-3
     # rows without one (x > 0 and -x > 0): a tight certificate
     assert qpmod.gordan_bound(np.array([[1.0, 0.2], [-1.0, -0.2], [0.5, 0.1]])) < 1e-12
+
+
+def test_the_seed_matrix_screen_agrees_with_the_weighted_form():
+    """The walk's infeasible splits are decided by a certificate on the channel's seed
+    matrix before any weighted system is built; each of them is infeasible in the
+    weighted form too, the feasible answer gets no certificate there, and a split
+    whose seed matrix is ill-conditioned is not screened at all."""
+    from ratfit.demos.addendum import addendum_segments
+
+    seg = addendum_segments()
+    r = RationalFitter(jobs=1).fit(seg).result_
+    screened = [(h["n"], h["m"]) for h in r.history
+                if h["status"] == "infeasible" and h["formulation"] == "basis"]
+    assert len(screened) == sum(h["status"] == "infeasible" for h in r.history) >= 30
+    f = RationalFitter(jobs=1)
+    space = f.prepare(seg)
+    engine = SearchEngine(f.options_, f.search_parts(space, seg), space, seg, 0)
+    for split in screened[::4]:
+        att, _ = qpmod.solve_pole_free(engine.split_system(*split), *split, cuts=engine.cuts)
+        assert att.status == "infeasible", (split, att.messages)
+    att = qpmod.certified_infeasible(engine.system, 13, 13)
+    assert att is not None and att.status == "failed" and att.qp_solves == 1
+    engine.system.prepare(40, 40)
+    assert engine.system.conditioning(40, 40)[0] < qpmod.SCREEN_MIN_DELTA
+    assert qpmod.certified_infeasible(engine.system, 40, 40) is None

@@ -36,8 +36,8 @@ from ratfit.core.systems import (
 from ratfit.errors import InputError
 
 __all__ = [
-    "ArnoldiSystem", "Attempt", "ConstraintSystem", "CROSS_CHECKS", "sk_denominator", "solve_fixed",
-    "solve_pole_free",
+    "ArnoldiSystem", "Attempt", "ConstraintSystem", "CROSS_CHECKS", "certified_infeasible",
+    "sk_denominator", "solve_fixed", "solve_pole_free",
 ]
 
 Array = NDArray[np.float64]
@@ -65,15 +65,47 @@ class ChannelPoints:
         self.hi = np.ascontiguousarray(seg.hi[:, channel])
         self.n_points = seg.n_points
         self.order = np.lexsort(self.t.T[::-1])  # sorted along x0, then x1, ...
+        # orthonormal bases on (subsets of) the points, by the subset's size
+        self._bases: dict[int, tuple[NDArray[np.int64], Array]] = {}
+        self._spread: dict[int, NDArray[np.int64]] = {}
+        self._lock = threading.Lock()
+
+    def data_basis(self, pick: NDArray[np.int64], k: int) -> Array:
+        """(len(pick), k) values at the points ``pick`` of the first k polynomials of
+        the space, orthonormal on them (unit weights, Arnoldi). Built once per subset
+        and grown geometrically; the first k columns do not depend on how many more
+        were built (the recurrence is sequential), so neither does any result."""
+        from ratfit.core.arnoldi import ArnoldiBasis
+
+        with self._lock:
+            have = self._bases.get(pick.size)
+            if have is not None and np.array_equal(have[0], pick) and have[1].shape[1] >= k:
+                return have[1]
+            size = max(k, min(2 * (have[1].shape[1] if have is not None else 0), k + 16))
+            size = max(k, min(size, pick.size))
+            t = self.t[pick]
+            try:
+                Q = ArnoldiBasis.build(self.space, t, np.ones(pick.size), size)[1]
+            except InputError:
+                if size == k:
+                    raise
+                Q = ArnoldiBasis.build(self.space, t, np.ones(pick.size), k)[1]
+            self._bases[pick.size] = (pick.copy(), Q)
+            return Q
 
     def spread_subset(self, size: int) -> NDArray[np.int64]:
         """``size`` points spread along the data, plus the extreme segments."""
         if size >= self.n_points:
             return np.arange(self.n_points)
+        have = self._spread.get(size)
+        if have is not None:
+            return have.copy()
         pick = self.order[spread_indices(self.n_points, size)]
         mid = 0.5 * (self.lo + self.hi)
         extra = [np.argmax(mid), np.argmin(mid), np.argmin(self.hi - self.lo)]
-        return np.unique(np.concatenate([pick, np.asarray(extra, dtype=np.int64)]))
+        out = np.unique(np.concatenate([pick, np.asarray(extra, dtype=np.int64)]))
+        self._spread[size] = out  # a search asks for a few sizes many times
+        return out.copy()
 
 
 class ConstraintSystem:
@@ -105,8 +137,12 @@ class ConstraintSystem:
         with self._lock:
             k = max(n_max, m_max)
             if k > self._k:
-                # Grow geometrically: a search asks for one more column at a time.
-                k = max(k, min(2 * self._k, k + 16))
+                # Grow geometrically (a search asks for one more column at a time), from
+                # 16 columns (each growth is a new TSQR), within the space's capacity.
+                need, k = k, max(k, min(max(2 * self._k, 16), k + 16))
+                cap = self.space.capacity()
+                if cap is not None:
+                    k = max(need, min(k, cap))
                 self.B = self.space.design(self.t, k, window=True)
                 self._cum_sq = np.cumsum(self.B**2, axis=1)
                 self._k = k
@@ -400,6 +436,55 @@ def _delta_from(s: NDArray[Any], shape: tuple[int, int]) -> tuple[float, float, 
     return smin / smax, smin, smax
 
 
+# The seed's matrix decides a split alone (certified_infeasible) only down to this
+# delta = 1 / cond(A(n, m)): the orthonormal basis its certificate is measured in is then
+# accurate to ~1e-12, far below the certificate's 1e-10.
+SCREEN_MIN_DELTA = 1e-5
+
+
+def certified_infeasible(system: RowSystem, n: int, m: int, *, solver: str = "quadprog",
+                         warm_rows: NDArray[np.int64] | None = None) -> Attempt | None:
+    """A Gordan certificate on the rows :func:`solve_fixed` starts with: an "infeasible"
+    Attempt when it is tight (:func:`gordan_bound` <= :data:`LP_CERTIFICATE_TOL`: no
+    direction meets those rows, so none meets every row, and no pole-free one either),
+    else a "failed" one that decides nothing (its QP, the certificate's dual, still
+    counts toward the work budget); None when not attempted.
+
+    The certificate's test does not depend on the coordinates of c (it is taken in an
+    orthonormal basis of the rows' span, after scaling each row to 1), so the seed's
+    matrix, shared by every split of a channel, can rule a split out before the split's
+    own weighted system is built; it is used only where it is well conditioned
+    (delta >= :data:`SCREEN_MIN_DELTA`). Every other split, and any that has a point
+    here, is left to :func:`solve_pole_free` as before.
+    """
+    t0 = time.perf_counter()
+    system.prepare(n, m)
+    delta, smin, smax = system.conditioning(n, m)
+    if not delta >= SCREEN_MIN_DELTA:
+        return None
+    k = n + m
+    if system.n_points > max(300, 8 * k):
+        in_set = np.zeros(system.n_rows, dtype=bool)
+        in_set[system.initial_rows(max(4 * k, 64))] = True
+        if warm_rows is not None and warm_rows.size:
+            in_set[warm_rows[(warm_rows >= 0) & (warm_rows < system.n_rows)]] = True
+        idx = np.flatnonzero(in_set)
+    else:
+        idx = np.arange(system.n_rows)
+    A = system.rows(n, m, idx)
+    bound = gordan_bound(A, thorough=False)
+    decided = bound <= LP_CERTIFICATE_TOL
+    return Attempt(n, m, "infeasible" if decided else "failed",
+                   solver_status="infeasible" if decided else "",
+                   decided_by="certificate" if decided else "",
+                   formulation="basis", delta=delta, sigma_min=smin, sigma_max=smax,
+                   active_set_size=int(idx.size), qp_solves=1,
+                   seconds=time.perf_counter() - t0,
+                   messages=[f"Gordan certificate on the seed's matrix: bound {bound:.3g}"
+                             + (" (decided before the weighted form was built)" if decided
+                                else ", not tight: decided by the weighted form")])
+
+
 def solve_pole_free(
     system: RowSystem,
     n: int,
@@ -581,13 +666,17 @@ def _lp_margin(An: Array, time_limit: float | None = None) -> Array | None:
     return np.asarray(res.x[:k])
 
 
-def gordan_bound(A: Array) -> float:
+def gordan_bound(A: Array, thorough: bool = True) -> float:
     """An upper bound on the margin of any direction for the rows of ``A``, from a
     certificate y >= 0 with A' y ~ 0 (Gordan's alternative): the rows are normalised
-    and orthonormalised as in the cross checks, and y minimises
-    ||W' y||^2 + (sum y - 1)^2 over y >= 0 (nonnegative least squares). Below
-    :data:`LP_CERTIFICATE_TOL` no c with |c| <= 1 has every (W c)_i above it: the
-    rows are infeasible by the same test as the LP's dual. inf when y is not small."""
+    and orthonormalised as in the cross checks, and y comes from the dual of the
+    minimum-norm point of their convex hull (one small QP, :func:`_dual_hull`), or,
+    when that y is not tight, minimises ||W' y||^2 + (sum y - 1)^2 over y >= 0
+    (nonnegative least squares). Below :data:`LP_CERTIFICATE_TOL` no c with |c| <= 1
+    has every (W c)_i above it: the rows are infeasible by the same test as the LP's
+    dual. Whichever way y was found, the bound is computed from y itself, in extended
+    precision. inf when y is not small. ``thorough=False``: the dual's y alone (a
+    quick test that may miss a certificate the NNLS would find)."""
     norms = np.linalg.norm(A, axis=1)
     An = A / np.where(norms > 0, norms, 1.0)[:, None]
     if An.shape[0] <= An.shape[1]:
@@ -602,12 +691,61 @@ def gordan_bound(A: Array) -> float:
         W = W[:, sv > 1e-15 * sv[0]]
     wn = np.linalg.norm(W, axis=1)
     Wn = W / np.where(wn > 0, wn, 1.0)[:, None]
-    y = _nnls_hull(Wn)
+    bound = _hull_bound(Wn, _dual_hull(Wn))
+    if bound <= LP_CERTIFICATE_TOL or not thorough:
+        return bound
+    return min(bound, _hull_bound(Wn, _nnls_hull(Wn)))
+
+
+def _hull_bound(Wn: Array, y: Array | None) -> float:
+    """||Wn' y||_1 / sum y in extended precision (inf without a usable y)."""
+    if y is None:
+        return float("inf")
     total = float(y.sum())
     if not total > 0:
         return float("inf")
-    r = Wn.astype(np.longdouble).T @ (y / total).astype(np.longdouble)
+    sup = np.flatnonzero(y)  # its zeros add nothing
+    r = Wn[sup].astype(np.longdouble).T @ (y[sup] / total).astype(np.longdouble)
     return float(np.abs(r).sum())
+
+
+def _dual_hull(P: Array) -> Array | None:
+    """y >= 0 (sum ~ 1) with P' y ~ 0 when the origin lies in the convex hull of the
+    rows of P, from the dual of the hull's minimum-norm point: max s - ||u||^2 / 2
+    subject to P u >= s, a QP in k + 1 unknowns whose multipliers are y (quadprog,
+    in C: a few times cheaper than the NNLS's Python loop on a walk's splits). The
+    multipliers are then polished by least squares on their support (the NNLS's
+    last step). None when the solver fails; the caller checks y either way."""
+    try:
+        import quadprog
+    except ImportError:  # pragma: no cover - a core dependency
+        return None
+    rows, k = P.shape
+    G = np.eye(k + 1)
+    G[-1, -1] = 1e-6  # s enters linearly; quadprog needs a positive definite G
+    a = np.zeros(k + 1)
+    a[-1] = 1.0
+    C = np.ascontiguousarray(np.hstack([P, -np.ones((rows, 1))]).T)
+    try:
+        lag = quadprog.solve_qp(G, a, C, np.zeros(rows), 0)[4]
+    except ValueError:
+        return None
+    y = np.maximum(np.asarray(lag, dtype=np.float64), 0.0)
+    sup = np.flatnonzero(y)
+    if sup.size:
+        M = np.vstack([P[sup].T, np.ones((1, sup.size))])
+        d = np.zeros(k + 1)
+        d[-1] = 1.0
+        try:  # a full support makes M square: LU is enough (and 3x cheaper)
+            if sup.size != k + 1:
+                raise np.linalg.LinAlgError
+            z = np.linalg.solve(M, d)
+        except np.linalg.LinAlgError:
+            z = np.linalg.lstsq(M, d, rcond=None)[0]
+        if np.all(np.isfinite(z)) and np.all(z >= 0):
+            y = np.zeros(rows)
+            y[sup] = z
+    return y
 
 
 def _nnls_hull(P: Array, max_iter: int | None = None) -> Array:
@@ -954,10 +1092,15 @@ def sk_denominator(space: PolynomialSpace, seg: Segments, channel: int | Sequenc
 
     ``channel`` and ``n`` may be sequences: one q shared by several channels,
     each with its own numerator size, minimising the sum of their residuals.
-    ``as_function``: return the guess as a function of window points instead."""
-    from ratfit.core.arnoldi import ArnoldiBasis
-    from ratfit.errors import InputError
+    ``as_function``: return the guess as a function of window points instead
+    (a :class:`DenominatorGuess`, which keeps its values at the points it was
+    fitted on).
 
+    Each step needs orthonormal bases of v P_n / s and v P_m on the points: they
+    come from Householder QR of one basis orthonormal on the unweighted points
+    (the same polynomial spaces; cached on ``like``'s points, so a search builds it
+    once per channel, not eight times per split). Only the last step's q, and only
+    where it is asked for away from those points, gets an Arnoldi recurrence."""
     chans = [channel] if isinstance(channel, (int, np.integer)) else list(channel)
     sizes = [n] if isinstance(n, (int, np.integer)) else list(n)
     t_all = space.to_window(seg.x) if like is None else like.t
@@ -972,35 +1115,94 @@ def sk_denominator(space: PolynomialSpace, seg: Segments, channel: int | Sequenc
     lo, hi = seg.lo[np.ix_(pick, cols)], seg.hi[np.ix_(pick, cols)]
     scale = segment_scales(lo, hi)
     d = 0.5 * (lo + hi) / scale
+    t_fit = t_all if pick.size == seg.n_points else t
+    if m == 1:
+        # q is a constant: the guess is exactly 1 (the weights exactly uniform; a
+        # rounding-level ripple in them moves the interpolating polynomials of
+        # small data, NIST Thurber's (37, 1), out of their 1e-4 segments)
+        guess1 = DenominatorGuess(space, t_fit, np.ones(pick.size), np.ones(pick.size), 1)
+        return guess1 if as_function else guess1(t_all)
+    k = max(max(sizes), m)
+    try:
+        if like is not None:
+            Q0 = like.points.data_basis(pick, k)
+        else:
+            from ratfit.core.arnoldi import ArnoldiBasis
+
+            Q0 = ArnoldiBasis.build(space, t, np.ones(pick.size), k)[1]
+    except InputError:
+        return None
     v = np.ones(pick.size)
-    guess = None
+    guess: tuple[Array, Array, Array] | None = None  # (q at the points, its weights, b)
     for _ in range(steps):
-        try:
-            q_basis, V = ArnoldiBasis.build(space, t, v, m)
-            # min sum_c ||U_c a_c - D_c V b|| over ||b|| = 1: eliminate each a_c
-            # (U_c is orthonormal); the normal matrix (m x m) is enough for a guess.
-            G = np.zeros((m, m))
-            for c, nc in enumerate(sizes):
-                _, U = ArnoldiBasis.build(space, t, v / scale[:, c], nc)
-                DV = d[:, c, None] * V
-                W = U.T @ DV
-                G += DV.T @ DV - W.T @ W
-        except InputError:
+        V = _weighted_orthonormal(Q0[:, :m], v)
+        if V is None:
             break
-        _, vecs = np.linalg.eigh(G)
-        b = vecs[:, 0]
-        qv = (V @ b) / v
-        if not np.all(np.isfinite(qv)) or not np.any(qv):
-            break
-        if np.sum(qv > 0) < np.sum(qv < 0):
-            qv, b = -qv, -b
-        guess = (q_basis, b)
-        v = denominator_weights(qv, pick.size)
+        # min sum_c ||U_c a_c - D_c V b|| over ||b|| = 1: eliminate each a_c
+        # (U_c is orthonormal); the normal matrix (m x m) is enough for a guess.
+        G = np.zeros((m, m))
+        for c, nc in enumerate(sizes):
+            U = _weighted_orthonormal(Q0[:, :nc], v / scale[:, c])
+            if U is None:
+                break
+            DV = d[:, c, None] * V
+            W = U.T @ DV
+            G += DV.T @ DV - W.T @ W
+        else:
+            _, vecs = np.linalg.eigh(G)
+            b = vecs[:, 0]
+            qv = (V @ b) / v
+            if not np.all(np.isfinite(qv)) or not np.any(qv):
+                break
+            if np.sum(qv > 0) < np.sum(qv < 0):
+                qv, b = -qv, -b
+            guess = (qv, v, b)
+            v = denominator_weights(qv, pick.size)
+            continue
+        break
     if guess is None:
         return None
+    out = DenominatorGuess(space, t_fit, guess[0], guess[1], m)
     if as_function:  # evaluated where needed (large data: not at every point)
-        basis, coef = guess
-        return lambda pts: basis.evaluate(pts, coef, window=True)
+        return out
     with np.errstate(all="ignore"):
-        q_all = guess[0].evaluate(t_all, guess[1], window=True)
+        q_all = out(t_all)
     return q_all if np.all(np.isfinite(q_all)) and np.any(q_all) else None
+
+
+def _weighted_orthonormal(Q0: Array, w: Array) -> Array | None:
+    """Orthonormal columns spanning diag(w) Q0 (Householder QR), None when a column
+    is lost to the others (the Arnoldi build's rank test, relative to its norm)."""
+    X = w[:, None] * Q0
+    Q, R = np.linalg.qr(X)
+    rd = np.abs(np.diag(R))
+    if not np.all(rd > 1e-13 * np.maximum(np.linalg.norm(X, axis=0), 1e-300)):
+        return None
+    return np.asarray(Q, dtype=np.float64)
+
+
+class DenominatorGuess:
+    """The denominator guess of :func:`sk_denominator` as a function of window points.
+
+    At the points it was fitted on (``t``, the same array object) it returns the
+    values the last step found; elsewhere it evaluates q through an Arnoldi
+    recurrence built on first use (the values at ``t`` projected on a basis
+    orthonormal for the step's weights)."""
+
+    def __init__(self, space: PolynomialSpace, t: Array, values: Array, weights: Array,
+                 m: int) -> None:
+        self.space, self.t, self.values, self.weights, self.m = space, t, values, weights, m
+        self._fn: tuple[Any, Array] | None = None
+        self._lock = threading.Lock()
+
+    def __call__(self, pts: Array) -> Array:
+        if pts is self.t:
+            return self.values.copy()
+        with self._lock:
+            if self._fn is None:
+                from ratfit.core.arnoldi import ArnoldiBasis
+
+                basis, V = ArnoldiBasis.build(self.space, self.t, self.weights, self.m)
+                self._fn = (basis, V.T @ (self.weights * self.values))
+            basis, coef = self._fn
+        return np.asarray(basis.evaluate(pts, coef, window=True), dtype=np.float64)

@@ -12,6 +12,9 @@ form a staircase, and the minimal total is found by walking it:
    one and the same m is tried again, otherwise m grows. Every infeasible
    answer rules out the whole column below it, so each test is at total
    best - 1 and the walk costs O(best) QPs instead of ALTA's O(best^2).
+   Column m below the best split's m is tested at the best total first
+   (best - m, m): the min-m rule needs that split anyway, and when it is
+   infeasible it rules out (best - 1 - m, m) as well.
 
 Split rule: among feasible splits of the minimal total, the one with the
 fewest denominator coefficients m (the closest to a polynomial: fewest
@@ -77,6 +80,7 @@ from ratfit.core.qp import (
     ArnoldiSystem,
     Attempt,
     ConstraintSystem,
+    certified_infeasible,
     sk_denominator,
     solve_pole_free,
 )
@@ -792,6 +796,10 @@ class SearchEngine:
             grid = domain_grid(space.dim, seg.n_points)
         self.cuts = (lambda rf: denominator_cuts(rf, grid)) if self.parts.pole_free else (
             lambda rf: np.zeros((0, space.dim)))
+        # the seed's matrix screens splits before their weighted systems are built
+        # (plain fits only: see _screen)
+        self.screen = (type(self.parts.systems) is ArnoldiSystems
+                       and type(self.system) is ConstraintSystem)
 
     # -- testing one split -----------------------------------------------------------
     def split_system(self, n: int, m: int) -> RowSystem | None:
@@ -872,11 +880,32 @@ class SearchEngine:
         # solve with the validity points (0.059), which the polish then improves.
         return self._repaired(out)
 
+    def _screen(self, n: int, m: int) -> Attempt | None:
+        """The seed's matrix's verdict on (n, m) before the split's weighted system is
+        built (:func:`~ratfit.core.qp.certified_infeasible`): most splits of a walk are
+        infeasible, and a certificate on the channel's shared matrix costs a fraction
+        of a denominator guess and two Arnoldi bases. Only for the default systems
+        (subclasses' systems carry rows of their own) and with a cross check."""
+        if (not self.screen or self.options.cross_check == "none" or self.second_opinion
+                or (self.deadline is not None and time.perf_counter() > self.deadline)):
+            return None
+        return certified_infeasible(self.system, n, m, solver=self.options.solver,
+                                    warm_rows=self.warm if self.options.warm_start else None)
+
     def _run_once(self, n: int, m: int) -> Candidate:
+        pre = self._screen(n, m)
+        if pre is not None and pre.status == "infeasible":
+            return pre, None, None
         system = self.split_system(n, m)
         if system is None:
-            return self._seed(n, m)
-        out = self._solve(system, n, m, "arnoldi")
+            out = self._seed(n, m)
+        else:
+            out = self._solve(system, n, m, "arnoldi")
+        if pre is not None:  # its QP counts toward the work budget
+            out[0].qp_solves += pre.qp_solves
+            out[0].seconds += pre.seconds
+        if system is None:
+            return out
         att = out[0]
         if att.timed_out:
             return out
@@ -918,7 +947,7 @@ class SearchEngine:
             raise _OutOfTime
         n_max = max(s[0] for s in todo)
         m_max = max(s[1] for s in todo)
-        if not self.parts.systems.per_split:
+        if not self.parts.systems.per_split or self.screen:
             self.system.prepare(n_max, m_max)
         if self._parallel() and len(todo) > 1:
             ex = ThreadPoolExecutor(min(self.jobs, len(todo)))
@@ -1084,32 +1113,42 @@ class SearchEngine:
         # 2. staircase walk below the best total.
         m = 1
         target = best[0] + best[1] - 1
-        while target >= lo:
-            cols: list[tuple[int, int]] = []
-            mm = m
-            width = self._batch_width()
-            while len(cols) < width and target - mm >= 1:
-                if not self.ruled_out(target - mm, mm):
-                    cols.append((target - mm, mm))
-                mm += 1
-            if not cols:
-                # No split of this total verified. When one of them was a QP-feasible
-                # candidate rejected by the verifier (a BRDF fit negative or through a
-                # pole between samples), success is not monotone in the total: a
-                # smaller total may still verify, so the walk goes on below it.
-                rejected = any(k[0] + k[1] == target and v[0].status == "feasible"
-                               for k, v in self.cache.items())
-                if not rejected:
-                    break
-                target, m = target - 1, 1
-                continue
-            self.test_many(cols)
-            hit = next((s for s in cols if self.ok(s)), None)
-            if hit is not None:
-                best, m = hit, hit[1]
-                target = best[0] + best[1] - 1
-            else:
-                m = mm
+        while True:
+            while target >= lo:
+                cols: list[tuple[int, int]] = []
+                mm = m
+                width = self._batch_width()
+                while len(cols) < width and target - mm >= 1:
+                    best = self._test_above(best, mm)
+                    if not self.ruled_out(target - mm, mm):
+                        cols.append((target - mm, mm))
+                    mm += 1
+                if not cols:
+                    # No split of this total verified. When one of them was a QP-feasible
+                    # candidate rejected by the verifier (a BRDF fit negative or through a
+                    # pole between samples), success is not monotone in the total: a
+                    # smaller total may still verify, so the walk goes on below it.
+                    rejected = any(k[0] + k[1] == target and v[0].status == "feasible"
+                                   for k, v in self.cache.items())
+                    if not rejected:
+                        break
+                    target, m = target - 1, 1
+                    continue
+                self.test_many(cols)
+                hit = next((s for s in cols if self.ok(s)), None)
+                if hit is not None:
+                    best, m = hit, hit[1]
+                    target = best[0] + best[1] - 1
+                else:
+                    m = mm
+            # A failed split (no verdict) rules out nothing below it, so the walk may
+            # have stepped past splits of the total below the best one: those neither
+            # tested nor ruled out are tested now, and a verified one resumes the walk.
+            hit = self._sweep(best, lo)
+            if hit is None:
+                break
+            best, m = hit, hit[1]
+            target = best[0] + best[1] - 1
         tot = best[0] + best[1]
         if self.options.split_rule == "error":
             splits = [(tot - k, k) for k in range(1, tot)]
@@ -1130,6 +1169,29 @@ class SearchEngine:
         feasible = sorted((s for s in self.cache if s[0] + s[1] == tot and self.ok(s)),
                           key=lambda s: s[1])
         return feasible[:1]
+
+    def _sweep(self, best: tuple[int, int], lo: int) -> tuple[int, int] | None:
+        """The first verified split, by ascending m, among the splits of the total
+        below ``best``'s that were neither tested nor ruled out by an infeasible one;
+        None when there is none (then every split of that total has been answered)."""
+        below = best[0] + best[1] - 1
+        if below < max(lo, 2):
+            return None
+        todo = [(below - k, k) for k in range(1, below)
+                if (below - k, k) not in self.cache and not self.ruled_out(below - k, k)]
+        return next((s for s in todo if self.ok(s)), None)
+
+    def _test_above(self, best: tuple[int, int], m: int) -> tuple[int, int]:
+        """Column m of the walk below ``best``'s total T, first at T itself when m <
+        best's m: (T - m, m) is a split the min-m rule has to test anyway, and when
+        it is infeasible it rules out (T - 1 - m, m) too (one QP for two splits; the
+        seed's walk: 34 splits where it took 46). Verified, it is the better split of
+        T (fewer denominator coefficients); the walk goes on with column m either way.
+        """
+        tot = best[0] + best[1]
+        if m >= best[1] or tot - m < 1 or self.ruled_out(tot - m, m):
+            return best
+        return (tot - m, m) if self.ok((tot - m, m)) else best
 
     def _choose(self, good: list[tuple[int, int]]) -> list[tuple[int, int]]:
         if not good:

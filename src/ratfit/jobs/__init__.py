@@ -4,11 +4,39 @@ Each job takes one request (a frozen, checked dataclass: input, widths, options,
 output) and returns one report (results, timings, messages, and the fit file's
 document). The CLI parses, builds a request, calls the job and prints; a batch
 manifest builds the same requests; from Python the same calls give the same fits.
+
+The names below are imported from their modules on first use: ``ratfit fit`` (and
+anything that needs only ``ratfit.jobs.common``) does not load the BRDF package.
 """
 
-from ratfit.jobs.brdf import BRDFFitReport, BRDFFitRequest, fit_brdf_file
-from ratfit.jobs.fit import FitReport, FitRequest, fit_file
-from ratfit.jobs.render import RenderReport, RenderRequest, render_fit
+from __future__ import annotations
+
+import importlib
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:
+    from ratfit.jobs.brdf import BRDFFitReport, BRDFFitRequest, fit_brdf_file
+    from ratfit.jobs.fit import FitReport, FitRequest, fit_file
+    from ratfit.jobs.render import RenderReport, RenderRequest, render_fit
+
+_WHERE = {
+    "BRDFFitReport": "brdf", "BRDFFitRequest": "brdf", "fit_brdf_file": "brdf",
+    "FitReport": "fit", "FitRequest": "fit", "fit_file": "fit",
+    "RenderReport": "render", "RenderRequest": "render", "render_fit": "render",
+}
 
 __all__ = ["BRDFFitReport", "BRDFFitRequest", "FitReport", "FitRequest", "RenderReport",
            "RenderRequest", "fit_brdf_file", "fit_file", "render_fit"]
+
+
+def __getattr__(name: str) -> Any:
+    module = _WHERE.get(name)
+    if module is None:
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    value = getattr(importlib.import_module(f"{__name__}.{module}"), name)
+    globals()[name] = value
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted(set(globals()) | set(__all__))
