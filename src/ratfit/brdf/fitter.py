@@ -28,6 +28,7 @@ from numpy.typing import ArrayLike, NDArray
 from ratfit.brdf.options import (
     BRDF_SOLVER,
     BRDF_TIME_LIMIT,
+    NOISE_FLOOR,
     UNKNOWN_PARAMETRIZATION,
     BRDFOptions,
 )
@@ -299,6 +300,7 @@ def fit_brdf(ds: Dataset, *, dt: float | None = None, abs_width: float | None = 
         "cosine_weighted": bool(cosine),
         "positive_q": bool(positive_q),
         "polish": bool(fitter.polish),
+        "polish_error": str(fitter.polish_error) if fitter.polish else None,
         "clamp": clamp,
         "fold_phi_d": bool(ds.meta.get("fold_phi_d", False)),
         "param_out": ds.meta.get("param_out"),
@@ -579,6 +581,10 @@ class BRDFFitter(RationalFitter):
         minimum-norm fit, which runs along the segments' edges. With a
         ``time_limit``, each channel's polish gets a quarter of it and keeps the
         search's fit (saying so in the message) when that runs out.
+    polish_error : {"relative", "absolute"}, default "relative"
+        What the polish minimises: the squared errors relative to |y| + 1e-3 1/sr
+        (:data:`~ratfit.brdf.options.NOISE_FLOOR`), so that the diffuse colour, 1e-4 of
+        a glossy paint's peak, counts as much as the peak; or the plain squared errors.
     used_coords : tuple of int, optional
         The coordinates of the parametrization that the segments' x holds, in
         order (None: all); :func:`fit_brdf` drops constant ones (Cornell's
@@ -615,6 +621,7 @@ class BRDFFitter(RationalFitter):
 
     def __init__(self, *, parametrization: str = UNKNOWN_PARAMETRIZATION,
                  positive_q: bool = False, physical: bool = True, polish: bool = True,
+                 polish_error: str = "relative",
                  used_coords: tuple[int, ...] | None = None,
                  solver: str = BRDF_SOLVER, time_limit: float | None = BRDF_TIME_LIMIT,
                  **params: Any) -> None:
@@ -623,6 +630,7 @@ class BRDFFitter(RationalFitter):
         self.positive_q = positive_q
         self.physical = physical
         self.polish = polish
+        self.polish_error = polish_error
         self.used_coords = used_coords
 
     def _fit_segments(self, segments: Segments) -> Self:
@@ -779,7 +787,8 @@ class BRDFFitter(RationalFitter):
         for _ in range(rounds):
             if _past(deadline):
                 return None
-            cand = polish_fit(rf, seg, j, positive_at=pts, solver=self.solver,
+            cand = polish_fit(rf, seg, j, weights=self._polish_weights(seg, j),
+                              positive_at=pts, solver=self.solver,
                               deadline=deadline, method=method,
                               repair=repair)
             if cand is None:
@@ -792,6 +801,13 @@ class BRDFFitter(RationalFitter):
                 return None
             pts = np.concatenate([pts, _spread(chk.bad_points, ROUND_POINTS)])
         return None
+
+    def _polish_weights(self, seg: Segments, j: int) -> Array | None:
+        """Each sample's weight in the polish: 1/(|y| + NOISE_FLOOR) for the relative
+        error, None (all 1) for the absolute one."""
+        if self.polish_error == "absolute":
+            return None
+        return 1.0 / (np.abs(seg.center[:, j]) + NOISE_FLOOR)
 
     def _polish_deadline(self) -> float | None:
         """A polish (or a repair) may take a quarter of the per-channel time limit:
@@ -817,10 +833,13 @@ class BRDFFitter(RationalFitter):
         if rf is None:
             return res
         y = seg.center[:, j]
+        w = self._polish_weights(seg, j)
+        w = np.ones_like(y) if w is None else w
+        what = "RMSE" if self.polish_error == "absolute" else "relative RMSE"
 
         def score(r: RationalFunction) -> float:
             with np.errstate(all="ignore"):
-                return float(np.sqrt(np.mean((r(seg.x) - y) ** 2)))
+                return float(np.sqrt(np.mean((w * (r(seg.x) - y)) ** 2)))
 
         before = score(rf)
         deadline = self._polish_deadline()
@@ -835,7 +854,7 @@ class BRDFFitter(RationalFitter):
         if not after < before:
             return res
         return replace(res, rational=cand, verification=ver,
-                       message=f"{res.message}; least-squares polish: RMSE "
+                       message=f"{res.message}; least-squares polish: {what} "
                                f"{before:.4g} -> {after:.4g} at the same size")
 
     def search_parts(self, space: PolynomialSpace, seg: Segments) -> SearchParts:

@@ -11,8 +11,8 @@ from ratfit.core.options import FIT_OPTIONS, FitOptions, Option, check_options_c
 from ratfit.core.solvers import first_available
 from ratfit.errors import InputError
 
-__all__ = ["BRDF_OPTIONS", "BRDF_SOLVER", "BRDF_TIME_LIMIT", "BRDFOptions",
-           "UNKNOWN_PARAMETRIZATION"]
+__all__ = ["BRDF_OPTIONS", "BRDF_SOLVER", "BRDF_TIME_LIMIT", "NOISE_FLOOR", "POLISH_ERRORS",
+           "BRDFOptions", "UNKNOWN_PARAMETRIZATION"]
 
 # DAQP first: quadprog was seen looping forever inside one call on a BRDF QP with
 # validity rows (1217 x 37, garnet_red) that DAQP solves in 6 ms.
@@ -23,6 +23,15 @@ BRDF_SOLVER = first_available(("daqp", "quadprog"))
 #: (57 s before the work budget replaced the clock; 169 s with this limit, measured
 #: 2026-11-25 under load). A work-counted bound for them is open (issue 26/28).
 BRDF_TIME_LIMIT = 120.0
+#: 1/sr: the absolute level under which a measured BRDF value is noise (the e of the
+#: relative error log((f + e)/(y + e)) that held-out errors and the relative polish use).
+#: Cornell's diffuse values of glossy paints lie at 3e-3..5e-2 1/sr, 1e-4 of their peak.
+NOISE_FLOOR = 1e-3
+#: What the least-squares polish minimises: "relative" the sum of ((f - y)/(|y| + e))^2,
+#: e = :data:`NOISE_FLOOR` (every decade of the dynamic range counts: the diffuse colour
+#: of a glossy paint is 1e-4 of its peak); "absolute" the sum of (f - y)^2 (the peak
+#: decides: garnet_red's diffuse G came out 2.4x the data).
+POLISH_ERRORS = ("relative", "absolute")
 #: The parametrization of coordinates no registry entry describes: the plain pole check.
 UNKNOWN_PARAMETRIZATION = "UNKNOWN"
 
@@ -61,6 +70,9 @@ BRDF_OPTIONS = extend_spec(
     Option("positive_q", "bool", False, "q > 0 on the valid grid inside the QP.", cli=False),
     Option("physical", "bool", True, "q > 0, p >= 0 on valid direction pairs.", cli=False),
     Option("polish", "bool", True, "Least-squares polish of each verified fit.", cli=False),
+    Option("polish_error", "choice", "relative",
+           "Error the polish minimises: relative (to |y| + 1e-3) or absolute.",
+           POLISH_ERRORS, cli=False),
     Option("used_coords", "indices", None,
            "Coordinates of the parametrization the data holds (None: all).",
            validator=_check_coords, cli=False),
@@ -80,6 +92,7 @@ class BRDFOptions(FitOptions):
     positive_q: bool = False
     physical: bool = True
     polish: bool = True
+    polish_error: str = "relative"
     used_coords: tuple[int, ...] | None = None
 
 

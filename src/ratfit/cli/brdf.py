@@ -83,12 +83,16 @@ def _split_channels(values: tuple[str, ...]) -> list[str]:
               help="Keep the search's minimum-norm fit (default: replace it by the "
                    "least-squares fit of the same size inside the segments when that "
                    "verifies).")
+@click.option("--polish-error", "polish_error", type=click.Choice(["relative", "absolute"]),
+              default="relative", show_default=True,
+              help="What the polish minimises: errors relative to |y| + 1e-3 1/sr (the "
+                   "diffuse colour counts as much as the peak) or plain squared errors.")
 @click.option("--json", "as_json", is_flag=True, help="Print one JSON object on stdout.")
 def brdf_fit(input_path: Path, output: Path | None, fmt: str | None, param: str | None,
              dt: float | None, abs_width: float | None, floor_rel: float | None, cosine: bool,
              clamp: float | None, positive_q: bool, channels: tuple[str, ...], color: str,
-             max_points: int | None, holdout: int | None, no_polish: bool, as_json: bool,
-             **options: Any) -> None:
+             max_points: int | None, holdout: int | None, no_polish: bool,
+             polish_error: str, as_json: bool, **options: Any) -> None:
     """Fit each channel of a measured BRDF with a verified rational function."""
     from ratfit.jobs import BRDFFitRequest, fit_brdf_file
 
@@ -102,7 +106,8 @@ def brdf_fit(input_path: Path, output: Path | None, fmt: str | None, param: str 
         **params, "format": fmt, "parametrization": param, "dt": dt, "abs_width": abs_width,
         "floor_rel": floor_rel, "cosine": cosine, "clamp": clamp, "positive_q": positive_q,
         "channels": _split_channels(channels), "color": color, "max_points": max_points,
-        "holdout": holdout, "polish": not no_polish, "output": output})
+        "holdout": holdout, "polish": not no_polish, "polish_error": polish_error,
+        "output": output})
     cb, stop = _progress(True)  # stderr: JSON on stdout stays clean
     try:
         report = fit_brdf_file(request.with_progress(cb))

@@ -635,6 +635,7 @@ _BRDF_FIELDS: dict[str, tuple[Any, str]] = {
     "cosine_weighted": (_is_bool, "true or false"),
     "positive_q": (_is_bool, "true or false"),
     "polish": (_is_bool, "true or false"),
+    "polish_error": (_opt(_is_str), "a string or null"),
     "fold_phi_d": (_is_bool, "true or false"),
     "clamp": (_opt(_number), "a finite number or null"),
     "param_out": (_opt(_is_str), "a string or null"),
