@@ -171,6 +171,7 @@ BRDF_ROWS = [
     ("parametrization", ["--param", "isotropic_tv_tl_dphi"], "ISOTROPIC_TV_TL_DPHI"),
     ("positive_q", ["--positive-q"], True),
     ("polish", ["--no-polish"], False),
+    ("polish_error", ["--polish-error", "absolute"], "absolute"),
 ]
 
 
