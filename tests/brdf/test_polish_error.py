@@ -1,5 +1,5 @@
-"""The BRDF polish minimises relative errors by default: the diffuse colour of a glossy
-material, far below its peak, counts as much as the peak."""
+"""The BRDF polish can minimise relative errors (``polish_error="relative"``): the diffuse
+part of a glossy material, far below its peak, then counts as much as the peak."""
 
 from __future__ import annotations
 
@@ -54,6 +54,7 @@ def test_relative_polish_keeps_the_diffuse_part_closer_to_the_data():
 
 
 def test_polish_error_is_checked_and_offered_on_the_command_line(tmp_path):
+    assert BRDFFitter().options().polish_error == "absolute"
     with pytest.raises(InputError, match="polish_error"):
         BRDFFitter(polish_error="log").options()
     res = CliRunner().invoke(main, ["brdf", "fit", str(tmp_path / "x.brdf"),

@@ -581,10 +581,10 @@ class BRDFFitter(RationalFitter):
         minimum-norm fit, which runs along the segments' edges. With a
         ``time_limit``, each channel's polish gets a quarter of it and keeps the
         search's fit (saying so in the message) when that runs out.
-    polish_error : {"relative", "absolute"}, default "relative"
-        What the polish minimises: the squared errors relative to |y| + 1e-3 1/sr
-        (:data:`~ratfit.brdf.options.NOISE_FLOOR`), so that the diffuse colour, 1e-4 of
-        a glossy paint's peak, counts as much as the peak; or the plain squared errors.
+    polish_error : {"absolute", "relative"}, default "absolute"
+        What the polish minimises: the plain squared errors, or the squared errors
+        relative to |y| + 1e-3 1/sr (:data:`~ratfit.brdf.options.NOISE_FLOOR`), so that
+        a diffuse part far below the peak counts as much as the peak.
     used_coords : tuple of int, optional
         The coordinates of the parametrization that the segments' x holds, in
         order (None: all); :func:`fit_brdf` drops constant ones (Cornell's
@@ -621,7 +621,7 @@ class BRDFFitter(RationalFitter):
 
     def __init__(self, *, parametrization: str = UNKNOWN_PARAMETRIZATION,
                  positive_q: bool = False, physical: bool = True, polish: bool = True,
-                 polish_error: str = "relative",
+                 polish_error: str = "absolute",
                  used_coords: tuple[int, ...] | None = None,
                  solver: str = BRDF_SOLVER, time_limit: float | None = BRDF_TIME_LIMIT,
                  **params: Any) -> None:

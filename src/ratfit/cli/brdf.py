@@ -83,10 +83,11 @@ def _split_channels(values: tuple[str, ...]) -> list[str]:
               help="Keep the search's minimum-norm fit (default: replace it by the "
                    "least-squares fit of the same size inside the segments when that "
                    "verifies).")
-@click.option("--polish-error", "polish_error", type=click.Choice(["relative", "absolute"]),
-              default="relative", show_default=True,
-              help="What the polish minimises: errors relative to |y| + 1e-3 1/sr (the "
-                   "diffuse colour counts as much as the peak) or plain squared errors.")
+@click.option("--polish-error", "polish_error", type=click.Choice(["absolute", "relative"]),
+              default="absolute", show_default=True,
+              help="What the polish minimises: plain squared errors, or errors relative "
+                   "to |y| + 1e-3 1/sr (a diffuse part far below the peak counts as much "
+                   "as the peak).")
 @click.option("--json", "as_json", is_flag=True, help="Print one JSON object on stdout.")
 def brdf_fit(input_path: Path, output: Path | None, fmt: str | None, param: str | None,
              dt: float | None, abs_width: float | None, floor_rel: float | None, cosine: bool,
