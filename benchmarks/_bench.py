@@ -186,7 +186,7 @@ class Table:
                  for i in range(len(self.header))]
         lines = [f"**{self.title}**", "",
                  "| " + " | ".join(_md_cell(h) for h in self.header) + " |",
-                 "|" + "|".join(align) + "|"]
+                 "| " + " | ".join(align) + " |"]
         lines += ["| " + " | ".join(_md_cell(c) for c in r) + " |" for r in self.rows]
         if self.note:
             lines += ["", self.note]
@@ -257,7 +257,8 @@ class Report:
                   f"written by `python benchmarks/_bench.py`" if s.recorded else
                   f"Written by `benchmarks/{self.script}`")
         head = [f"<!-- {origin.replace('`', '')}; do not edit by hand -->",
-                f'!!! info "Measured {s.date[:10]} at {s.commit}"', f"    {origin}."]
+                f'!!! info "Measured {s.date[:10]} at {s.commit}'
+                f'{" (kept as a record)" if s.recorded else ""}"', f"    {origin}."]
         head += [f"    - {line}" if i else f"\n    - {line}" for i, line in
                  enumerate([*s.lines(), *([f"Command: `{self.command}`"]
                                           if self.command else [])])]
