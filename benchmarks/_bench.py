@@ -256,12 +256,12 @@ class Report:
         origin = (f"Rows measured by `benchmarks/{self.script}`, kept as a record and "
                   f"written by `python benchmarks/_bench.py`" if s.recorded else
                   f"Written by `benchmarks/{self.script}`")
+        title = f"Measured {s.date[:10]} at {s.commit}" + (" (kept as a record)"
+                                                            if s.recorded else "")
+        stamp = [*s.lines(), *([f"Command: `{self.command}`"] if self.command else [])]
         head = [f"<!-- {origin.replace('`', '')}; do not edit by hand -->",
-                f'!!! info "Measured {s.date[:10]} at {s.commit}'
-                f'{" (kept as a record)" if s.recorded else ""}"', f"    {origin}."]
-        head += [f"    - {line}" if i else f"\n    - {line}" for i, line in
-                 enumerate([*s.lines(), *([f"Command: `{self.command}`"]
-                                          if self.command else [])])]
+                f'!!! info "{title}"', f"    {origin}.", "",
+                *(f"    - {line}" for line in stamp)]
         return "\n".join(head) + "\n\n" + "\n\n".join(self.parts) + "\n"
 
     def write(self) -> Path | None:
@@ -293,8 +293,7 @@ def report(args: argparse.Namespace, script_file: str, *,
     md = getattr(args, "markdown", None)
     if md is not None:
         path = Path(md) if md else GENERATED / f"{name or Path(script).stem}.md"
-    argv = [a for a in sys.argv[1:]]
-    command = " ".join(["python", f"benchmarks/{script}", *map(shlex.quote, argv)])
+    command = " ".join(["python", f"benchmarks/{script}", *map(shlex.quote, sys.argv[1:])])
     return Report(script=script, markdown=path, command=command)
 
 
