@@ -54,7 +54,8 @@ def aaa_for(target: float) -> dict:
           f"(k = 2..{k}) leave real poles in [-3, 12]")
     dense = float(np.max(np.abs(r(XD) - YD) / np.abs(YD)))
     return {"coef": 2 * k, "reals": 3 * k, "type": f"({k - 1},{k - 1})", "err": err,
-            "dense": dense, "poles": real_in, "s": secs}
+            "dense": dense, "poles": real_in, "s": secs,
+            "path": f"{with_poles} of the {k - 1} degrees tried (k = 2..{k})"}
 
 
 def _real_poles(r) -> int:
@@ -140,6 +141,9 @@ def main() -> None:
                    "ratfit: n + m, every segment verified, no pole in [-3, 12]. \"dense "
                    "err\": max relative error on 5 000 points between the samples; poles: "
                    "real poles inside [-3, 12].")
+    rep.note("On its way to each target AAA passes through fits with real poles in "
+             "[-3, 12]: " + "; ".join(f"{t:.0e}: {d['path']}" for t, name, d, _ in rows
+                                       if name.startswith("AAA")) + ".")
     rep.figure(figure(rows), "bench_aaa", "p/q coefficients needed for each max relative "
                "error target, per method")
     rep.write()
