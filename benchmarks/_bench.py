@@ -147,8 +147,13 @@ def _numeric(column: Sequence[str]) -> bool:
     return bool(cells) and all(_NUMBER.match(c) for c in cells)
 
 
+def _md_text(text: str) -> str:
+    """Plain text for Markdown: ``*`` stays a star (``lambert+ggx*2``), not emphasis."""
+    return text.replace("*", r"\*")
+
+
 def _md_cell(text: str) -> str:
-    return text.replace("|", r"\|").replace("\n", " ") or " "
+    return _md_text(text).replace("|", r"\|").replace("\n", " ") or " "
 
 
 @dataclass
@@ -184,7 +189,7 @@ class Table:
         """The title in bold, a pipe table (numeric columns right-aligned), the note."""
         align = ["---:" if _numeric([r[i] for r in self.rows]) else "---"
                  for i in range(len(self.header))]
-        lines = [f"**{self.title}**", "",
+        lines = [f"**{_md_text(self.title)}**", "",
                  "| " + " | ".join(_md_cell(h) for h in self.header) + " |",
                  "| " + " | ".join(align) + " |"]
         lines += ["| " + " | ".join(_md_cell(c) for c in r) + " |" for r in self.rows]

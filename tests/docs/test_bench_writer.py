@@ -91,9 +91,12 @@ def test_markdown_has_the_stamp_and_the_rows(bench, tmp_path: Path, capsys) -> N
     assert len({len(ln) for ln in term[i + 1:i + 6]}) == 1  # one width
 
 
-def test_cells_with_pipes_and_rows_of_the_wrong_width(bench) -> None:
-    t = bench.Table("t", ["a", "b"], [["|x|", "-"], ["1e-3", "2.5x"]])
+def test_cells_with_pipes_stars_and_rows_of_the_wrong_width(bench) -> None:
+    t = bench.Table("vs lambert+ggx*2", ["a", "b"], [["|x|", "-"], ["1e-3", "2.5x"],
+                                                     ["46+45 *", "1"]])
+    assert t.markdown().startswith(r"**vs lambert+ggx\*2**")  # a star, not emphasis
     assert _md_rows(t.markdown())[2] == [r"\|x\|", "-"]
+    assert _md_rows(t.markdown())[4] == [r"46+45 \*", "1"]
     assert _md_rows(t.markdown())[1] == ["---", "---:"]  # "-" is no cell, "2.5x" a number
     with pytest.raises(ValueError, match="a row has 1 cells for 2 columns"):
         bench.Table("t", ["a", "b"], [["1"]])
