@@ -367,6 +367,9 @@ class ModelComparison:
                    [r[i] for _, r in self.ratios], w, label=self.labels.get(k, k))
         ax.axhline(1.0, color="black", lw=0.8)
         ax.set_yscale("log")
+        # 1 (as good as the model) always inside, with room above and below
+        finite = [v for _, r in self.ratios for v in r if np.isfinite(v) and v > 0] + [1.0]
+        ax.set_ylim(min(finite) / 1.5, max(finite) * 1.5)
         ax.set_xticks(x, [n for n, _ in self.ratios], rotation=60, ha="right", fontsize=8)
         ax.set_ylabel("better model's error / rational's")
         ax.legend(fontsize=8)
