@@ -24,7 +24,7 @@ import time
 import warnings
 
 import numpy as np
-from _bench import table  # benchmarks/_bench.py
+from _bench import add_markdown_option, report  # benchmarks/_bench.py
 from scipy.interpolate import AAA
 from scipy.special import gamma
 
@@ -87,7 +87,9 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--quick", action="store_true", help="widths 1e-1 and 1e-2 only")
     ap.add_argument("--time-limit", type=float, default=60.0, help="ratfit seconds per fit")
+    add_markdown_option(ap)
     args = ap.parse_args()
+    rep = report(args, __file__)
     widths = WIDTHS[:2] if args.quick else WIDTHS
     rows, misses = [], 0
     for name, x, y in SUITE:
@@ -105,10 +107,11 @@ def main() -> None:
             ])
             print(f"{name} {e:.0e}: ratfit {rows[-1][2]} ({r['seconds']:.1f} s), "
                   f"AAA {rows[-1][6]}", flush=True)
-    table("ratfit vs AAA, relative widths (coefficients: ratfit n+m, AAA 2k)",
-          ["function", "width", "ratfit n+m", "var", "poles", "s", "AAA 2k", "AAA poles",
-           "AAA s", ""], rows)
+    rep.table("ratfit vs AAA, relative widths (coefficients: ratfit n+m, AAA 2k)",
+              ["function", "width", "ratfit n+m", "var", "poles", "s", "AAA 2k", "AAA poles",
+               "AAA s", ""], rows)
     print(f"\nrows where ratfit finds nothing while AAA has a pole-free fit: {misses}")
+    rep.write()
 
 
 if __name__ == "__main__":

@@ -30,7 +30,7 @@ import time  # noqa: E402
 from pathlib import Path  # noqa: E402
 
 import numpy as np  # noqa: E402
-from _bench import table  # noqa: E402  (benchmarks/_bench.py)
+from _bench import add_markdown_option, report  # noqa: E402  (benchmarks/_bench.py)
 
 from ratfit.batch import runner as batch  # noqa: E402
 from ratfit.core.segments import Segments  # noqa: E402
@@ -92,7 +92,9 @@ def main() -> None:
     ap = argparse.ArgumentParser()
     ap.add_argument("--repeat", type=int, default=3, help="rounds; best round per configuration")
     ap.add_argument("--workers", type=int, nargs="+", default=[1, 2])
+    add_markdown_option(ap)
     args = ap.parse_args()
+    rep = report(args, __file__)
     with tempfile.TemporaryDirectory() as tmp:
         folder = Path(tmp)
         manifest = write_inputs(folder)
@@ -112,10 +114,11 @@ def main() -> None:
             rows.append([f"{w} worker(s)", str(ok), f"{secs:.2f}", f"{with_start:.2f}",
                          f"{24 / secs:.2f}", f"{ref / secs:.2f}"])
         load = ", ".join(f"{v:.1f}" for v in os.getloadavg())
-        table(f"24-fit batch ({os.cpu_count()} cores, load average {load}), "
-              f"best of {args.repeat}",
-              ["run", "verified", "batch s", "with start s", "fits/s",
-               f"speed-up vs {args.workers[0]} worker"], rows)
+        rep.table(f"24-fit batch ({os.cpu_count()} cores, load average {load}), "
+                  f"best of {args.repeat}",
+                  ["run", "verified", "batch s", "with start s", "fits/s",
+                   f"speed-up vs {args.workers[0]} worker"], rows)
+    rep.write()
 
 
 if __name__ == "__main__":

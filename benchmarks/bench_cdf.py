@@ -20,7 +20,7 @@ from __future__ import annotations
 import argparse
 
 import numpy as np
-from _bench import best_of, table  # benchmarks/_bench.py
+from _bench import add_markdown_option, best_of, report  # benchmarks/_bench.py
 from scipy.integrate import cumulative_trapezoid
 
 from ratfit.cdf.monotone import MonotoneFitter, cdf_from_pdf
@@ -45,7 +45,9 @@ def main() -> None:
     ap = argparse.ArgumentParser()
     ap.add_argument("--repeat", type=int, default=3)
     ap.add_argument("--samples", type=int, default=1_000_000)
+    add_markdown_option(ap)
     args = ap.parse_args()
+    rep = report(args, __file__)
     build_rows, draw_rows = [], []
     for name, (a, b, pdf, cdf) in LOBES.items():
         x = np.linspace(a, b, 1000)
@@ -85,10 +87,11 @@ def main() -> None:
         draw_rows.append([name, f"rational ppf ({model.rational.n}+{model.rational.m})",
                           f"{t_rat * 1e3:.1f}", f"{t_rat / t_interp:.1f}",
                           f"{ks_statistic(xs_rat, cdf):.2e}"])
-    table("Build a CDF from a 1000-point pdf table (ratio vs the baseline table)",
-          ["lobe", "method", "n+m (verified)", "ms", "ratio", "sup|F - F_true|"], build_rows)
-    table(f"Draw {args.samples:.0e} samples (ratio vs np.interp)",
-          ["lobe", "method", "ms", "ratio", "KS vs true"], draw_rows)
+    rep.table("Build a CDF from a 1000-point pdf table (ratio vs the baseline table)",
+              ["lobe", "method", "n+m (verified)", "ms", "ratio", "sup|F - F_true|"], build_rows)
+    rep.table(f"Draw {args.samples:.0e} samples (ratio vs np.interp)",
+              ["lobe", "method", "ms", "ratio", "KS vs true"], draw_rows)
+    rep.write()
 
 
 if __name__ == "__main__":

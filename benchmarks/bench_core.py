@@ -31,7 +31,7 @@ import time
 from pathlib import Path
 
 import numpy as np
-from _bench import best_of, table  # benchmarks/_bench.py
+from _bench import Report, add_markdown_option, best_of, report  # benchmarks/_bench.py
 
 from ratfit import RationalFitter
 from ratfit.core.bases import PolynomialSpace
@@ -66,7 +66,7 @@ def _brute_force(seg) -> tuple[int, int]:
     raise RuntimeError("no split up to 80")
 
 
-def seed_table(seg, repeat: int) -> None:
+def seed_table(rep: Report, seg, repeat: int) -> None:
     from ratfit.core.threads import one_blas_thread
 
     with one_blas_thread():  # as ratfit's search: BLAS threads only spin on these sizes
@@ -117,19 +117,22 @@ def seed_table(seg, repeat: int) -> None:
         ["ratfit CLI, whole process", f"{cn}+{cm}", f"{cli_wall:.3f}", f"{brute / cli_wall:.2f}",
          f"{cli_wall / one:.1f}"],
     ]
-    table("seed search (1000 points, +-10 %, Legendre, totals from 2), one run; targets: "
-          "'x faster' >= 6, 'x one QP' <= 5",
-          ["what", "n+m", "seconds", "x faster than loop", "x one QP"], rows)
+    rep.table("seed search (1000 points, +-10 %, Legendre, totals from 2), one run; targets: "
+              "'x faster' >= 6, 'x one QP' <= 5",
+              ["what", "n+m", "seconds", "x faster than loop", "x one QP"], rows)
 
 
 def main() -> None:
     ap = argparse.ArgumentParser()
     ap.add_argument("--repeat", type=int, default=5)
     ap.add_argument("--only-seed", action="store_true", help="table 0 only")
+    add_markdown_option(ap)
     args = ap.parse_args()
+    rep = report(args, __file__, name="bench_core_seed" if args.only_seed else None)
     seg = addendum_segments()
-    seed_table(seg, args.repeat)
+    seed_table(rep, seg, args.repeat)
     if args.only_seed:
+        rep.write()
         return
 
     # 1. search
@@ -145,8 +148,8 @@ def main() -> None:
     for name, (secs, r) in results.items():
         rows.append([name, f"{r.n}+{r.m}={r.total}", str(r.success), str(len(r.history)),
                      f"{secs:.3f}", f"{secs / base:.3f}"])
-    table("minimal-total search, Legendre, totals from 2 up (target < 0.5 s on 2 cores)",
-          ["strategy", "n+m", "verified", "splits tested", "seconds", "ratio"], rows)
+    rep.table("minimal-total search, Legendre, totals from 2 up (target < 0.5 s on 2 cores)",
+              ["strategy", "n+m", "verified", "splits tested", "seconds", "ratio"], rows)
 
     # 2. single QP
     space = PolynomialSpace("legendre", seg.bounds())
@@ -162,9 +165,9 @@ def main() -> None:
             )
             rows.append([solver, "on" if active else "off", att.status, att.decided_by,
                          str(att.qp_solves), f"{secs * 1e3:.1f}", f"{secs / ref:.2f}"])
-    table("one 20+20 QP, Legendre, the seed's matrix (target < 50 ms); "
-          "ratio vs quadprog on all rows",
-          ["solver", "active set", "status", "decided by", "QP solves", "ms", "ratio"], rows)
+    rep.table("one 20+20 QP, Legendre, the seed's matrix (target < 50 ms); "
+              "ratio vs quadprog on all rows",
+              ["solver", "active set", "status", "decided by", "QP solves", "ms", "ratio"], rows)
 
     # 3. solver comparison without cross-check
     # in the seed's matrix and in the weighted data-orthonormal (Arnoldi) form
@@ -183,9 +186,11 @@ def main() -> None:
                              "-" if v is None else f"{v.max_violation:.3g}",
                              "-" if v is None else str(v.poles_in_domain),
                              f"{secs * 1e3:.0f}"])
-    table("solvers alone (no cross-check), 20+20, +-10 %: does the answer verify?",
-          ["formulation", "solver", "basis", "verified", "max violation", "poles", "ms"], rows)
-    print(f"\ntimes: best of {args.repeat} runs (the exhaustive baseline and table 3: 1 run)")
+    rep.table("solvers alone (no cross-check), 20+20, +-10 %: does the answer verify?",
+              ["formulation", "solver", "basis", "verified", "max violation", "poles", "ms"], rows)
+    rep.note(f"Times: best of {args.repeat} runs (the exhaustive baseline and the last "
+             "table: 1 run).")
+    rep.write()
 
 
 if __name__ == "__main__":

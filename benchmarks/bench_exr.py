@@ -26,7 +26,7 @@ import sys
 import time
 from pathlib import Path
 
-from _bench import table
+from _bench import add_markdown_option, report
 
 DATA = Path(os.environ.get("RATFIT_SHARED_DATA", Path(__file__).resolve().parents[1].parent
                            / "shared" / "data"))
@@ -80,10 +80,12 @@ def main() -> None:
     ap.add_argument("--cold", action="store_true", help="also the fit with speedups off")
     ap.add_argument("--timeout", type=float, default=1200.0)
     ap.add_argument("--child", nargs=2, help=argparse.SUPPRESS)
+    add_markdown_option(ap)
     a = ap.parse_args()
     if a.child:
         print(json.dumps(one(a.data, a.dt, int(a.child[0]), a.child[1] == "cold")))
         return
+    rep = report(a, __file__)
     runs = [("all", 0, "warm"), (f"subset {a.subset}", a.subset, "warm")]
     if a.cold:
         runs.append(("cold", 0, "cold"))
@@ -120,10 +122,11 @@ def main() -> None:
                      f"{r['secs'] / base['secs']:.2f}" if base else "-",
                      str(sum(c["qps"] for c in r["channels"])), "", "", "", ""])
     widths = base["widths"] if base else f"dt {a.dt}"
-    table(f"{Path(a.data).name} at {widths}, {os.cpu_count()} cores "
-          "(x all: seconds / the 'all' row's, same run)",
-          ["fit", "channel", "samples", "s", "x all", "QPs", "(n, m)", "minimal",
-           "verified on all samples", "peak MB"], rows)
+    rep.table(f"{Path(a.data).name} at {widths}, {os.cpu_count()} cores "
+              "(x all: seconds / the 'all' row's, same run)",
+              ["fit", "channel", "samples", "s", "x all", "QPs", "(n, m)", "minimal",
+               "verified on all samples", "peak MB"], rows)
+    rep.write()
 
 
 if __name__ == "__main__":

@@ -15,13 +15,12 @@ fold fits' coefficient counts, and whether the rational fit wins all three.
 from __future__ import annotations
 
 import argparse
-import datetime
-import platform
-import subprocess
+import sys
 import time
 from pathlib import Path
 
 import numpy as np
+from _bench import ModelComparison, add_markdown_option, report  # benchmarks/_bench.py
 
 from ratfit.brdf.analytic_models import Model, fit_model
 from ratfit.brdf.fitter import candidate_parametrizations
@@ -60,14 +59,11 @@ def main() -> None:
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--time-limit", type=float, default=None,
                     help="per-channel search limit of each fold fit (default: ratfit's)")
+    add_markdown_option(ap)
     args = ap.parse_args()
-    commit = subprocess.run(["git", "-C", str(REPO), "rev-parse", "--short", "HEAD"],
-                            capture_output=True, text=True).stdout.strip()
-    print(f"# {datetime.date.today()} commit {commit} {platform.machine()} "
-          f"{platform.python_version()}; {args.k}-fold, seed {args.seed}")
-    print(f"{'material':<12} {'ch':<2} {'coefs':>7} " + " ".join(
-        f"{k + ' rat/model':>24}" for k in METRICS) + f" {'wins':>5} {'s':>6}")
-    wins = total = 0
+    rep = report(args, __file__)
+    cmp = ModelComparison(METRICS, {"rmse": "RMSE", "cos_rmse": "cos RMSE",
+                                    "rel_rmse": "rel. RMSE"})
     for name in MATERIALS:
         if args.only and args.only not in name:
             continue
@@ -77,29 +73,29 @@ def main() -> None:
         t0 = time.perf_counter()
         res = cross_validate(frames, args.k, seed=args.seed, **kw)
         secs = time.perf_counter() - t0
+        print(f"{name}: {res.folds_verified} of {args.k} fold fits verified, {secs:.0f} s",
+              file=sys.stderr, flush=True)
         models = models_held_out(frames[-1], args.k, args.seed)
         sizes = [f["coefficients"] for f in res.folds if f["coefficients"] is not None]
         coefs = f"{min(sizes)}-{max(sizes)}" if sizes else "none"
         for ch in frames[0].output_names:
             if ch not in res.metrics or res.folds_verified < args.k:
-                print(f"{name:<12} {ch:<2} {coefs:>7} {res.folds_verified} of {args.k} "
-                      "fold fits verified: not compared")
-                total += 1
+                cmp.add_missing(name, ch, coefs, f"{res.folds_verified} of {args.k} fold "
+                                "fits verified: not compared", secs)
                 continue
-            cells, won = [], True
-            for k in METRICS:
-                best = min(models, key=lambda s, k=k, ch=ch: models[s][ch][k])
-                b, r = models[best][ch][k], res.metrics[ch][k]
-                won &= r < b
-                cells.append(f"{r:8.4g}/{b:8.4g} {b / r:5.2f}x")
-            wins += won
-            total += 1
-            print(f"{name:<12} {ch:<2} {coefs:>7} " + " ".join(f"{c:>24}" for c in cells)
-                  + f" {'yes' if won else 'no':>5} {secs:6.0f}")
-    print(f"\nheld out: the default rational fit beats the better of {', '.join(MODELS)} on "
-          f"all of {', '.join(METRICS)} in {wins} of {total} channels")
-    print("(cells: rational / better model, then model / rational; coefs: the fold fits' "
-          "totals over the three channels; s: the material's K fold fits)")
+            cmp.add(name, ch, coefs, res.metrics[ch], models, secs)
+    rep.table(f"held out ({args.k}-fold, seed {args.seed}): the default rational fit against "
+              f"the better of {', '.join(MODELS)}, per channel",
+              cmp.header("coefs", "s"), cmp.rows,
+              note=f"Held out, the default rational fit beats the better model on all of "
+                   f"{', '.join(METRICS)} in {cmp.wins} of {cmp.total} channels. Each cell: "
+                   "rational / better model (model / rational); coefs: the fold fits' "
+                   "totals over the three channels; s: the material's K fold fits.")
+    fig = cmp.figure()
+    if fig is not None:
+        rep.figure(fig, "bench_holdout", "held out: better analytic model's error / "
+                   "rational fit's, per channel (above 1: the rational fit is better)")
+    rep.write()
 
 
 if __name__ == "__main__":

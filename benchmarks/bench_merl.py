@@ -26,6 +26,7 @@ import time
 from pathlib import Path
 
 import numpy as np
+from _bench import add_markdown_option, report  # benchmarks/_bench.py
 
 KD = np.array([0.10, 0.06, 0.03])
 LOBES = (  # (alpha, specular colour F0)
@@ -89,6 +90,7 @@ def main() -> None:
     ap.add_argument("--timeout", type=float, default=900.0)
     ap.add_argument("--param", default="COS_TH_TD_PD")
     ap.add_argument("--child", nargs=2, help=argparse.SUPPRESS)
+    add_markdown_option(ap)
     a = ap.parse_args()
     if a.child:
         print(json.dumps(one(a.child[0], int(a.child[1]), a.dt, a.floor_rel, a.jobs, a.param,
@@ -96,6 +98,7 @@ def main() -> None:
         return
     from ratfit.brdf.io import merl_from_function, read_merl, write_merl
 
+    rep = report(a, __file__)
     rows = []
     with tempfile.TemporaryDirectory() as tmp:
         path = str(Path(tmp) / "synthetic.binary")
@@ -119,22 +122,25 @@ def main() -> None:
             print(f"size {size or 'all'}: {time.perf_counter() - t0:.1f} s", file=sys.stderr,
                   flush=True)
     base = next((r for r in rows if "fit_s" in r), None)
-    print(f"\nparam {a.param}, dt {a.dt}, floor {a.floor_rel} x max, jobs {a.jobs}")
-    print(f"{'samples':>9} {'read s':>7} {'fit s':>8} {'x fit':>7} {'x samples':>9} "
-          f"{'peak MB':>8} {'verified':>8} {'coefs':>6} {'QPs':>5}  (n, m) per channel")
+    cells = []
     for r in rows:
         if "timeout" in r:
-            print(f"{r['samples']:>9}  did not finish in {r['timeout']:.0f} s")
+            cells.append([str(r["samples"]), "-", f"> {r['timeout']:.0f}", "-", "-", "-",
+                          "did not finish", "-", "-", "-"])
             continue
         assert base is not None
-        print(f"{r['samples']:>9} {r['read_s']:>7.2f} {r['fit_s']:>8.2f} "
-              f"{r['fit_s'] / base['fit_s']:>7.1f} {r['samples'] / base['samples']:>9.1f} "
-              f"{r['peak_mb']:>8.0f} {str(r['verified']):>8} {r['coefs']:>6} {r['qps']:>5}  "
-              f"{' '.join(r['nm'])}")
-    if any("*" in nm for r in rows for nm in r.get("nm", [])):
-        print("(*: that channel's search stopped at the time limit; its total may not be "
-              "minimal)")
-
+        cells.append([str(r["samples"]), f"{r['read_s']:.2f}", f"{r['fit_s']:.2f}",
+                      f"{r['fit_s'] / base['fit_s']:.1f}", f"{r['samples'] / base['samples']:.1f}",
+                      f"{r['peak_mb']:.0f}", str(r["verified"]), str(r["coefs"]), str(r["qps"]),
+                      " ".join(r["nm"])])
+    starred = any("*" in nm for r in rows for nm in r.get("nm", []))
+    rep.table(f"param {a.param}, dt {a.dt}, floor {a.floor_rel} x max, jobs {a.jobs} "
+              "(x fit, x samples: against the first row, same run)",
+              ["samples", "read s", "fit s", "x fit", "x samples", "peak MB", "verified",
+               "coefs", "QPs", "(n, m) per channel"], cells,
+              note="(*: that channel's search stopped at the time limit; its total may not "
+                   "be minimal)" if starred else "")
+    rep.write()
 
 if __name__ == "__main__":
     main()

@@ -28,7 +28,7 @@ import time
 from pathlib import Path
 
 import numpy as np
-from _bench import table  # benchmarks/_bench.py
+from _bench import add_markdown_option, report  # benchmarks/_bench.py
 
 from ratfit import RationalFitter
 from ratfit.core.qp import ArnoldiSystem, sk_denominator
@@ -81,7 +81,9 @@ def lp_pole_free(space, seg, n: int, m: int):
 def main() -> None:
     ap = argparse.ArgumentParser()
     ap.add_argument("--below", type=int, default=3, help="totals T-below..T-1 checked")
+    add_markdown_option(ap)
     args = ap.parse_args()
+    rep = report(args, __file__)
     rows = []
     for name, rel, dt, aw in CASES:
         path = DATA / rel
@@ -112,9 +114,10 @@ def main() -> None:
                      ", ".join(f"{a}+{b}" for a, b in alone[:4]) or "none",
                      "-" if smallest is None else str(smallest), f"{secs:.2f}",
                      "yes" if smallest is None else "NO", f"{lp_secs:.1f}"])
-    table(f"reported total T vs every split of totals T-{args.below}..T-1 (LP; fitted alone)",
-          ["data, width", "ratfit n+m", "LP fits below T", "alone fits below T", "smallest",
-           "ratfit s", "minimal", "check s"], rows)
+    rep.table(f"reported total T vs every split of totals T-{args.below}..T-1 (LP; fitted alone)",
+              ["data, width", "ratfit n+m", "LP fits below T", "alone fits below T", "smallest",
+               "ratfit s", "minimal", "check s"], rows)
+    rep.write()
 
 
 if __name__ == "__main__":

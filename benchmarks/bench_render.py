@@ -33,7 +33,7 @@ import time
 from pathlib import Path
 
 import numpy as np
-from _bench import table  # benchmarks/_bench.py
+from _bench import add_markdown_option, report  # benchmarks/_bench.py
 
 from ratfit.render import AnalyticMaterial, FitMaterial, HalfVectorSampler
 from ratfit.render import mitsuba_bsdf as mb
@@ -60,7 +60,9 @@ def main() -> None:
     ap.add_argument("--cornell", default="garnet_red.brdf")
     ap.add_argument("--data-root", type=Path, default=REPO.parent / "shared" / "data")
     ap.add_argument("--seeds", type=int, default=2, help="independent renders averaged")
+    add_markdown_option(ap)
     args = ap.parse_args()
+    rep = report(args, __file__)
     variant = mb.setup()
     print(f"mitsuba variant {variant}", file=sys.stderr)
     with tempfile.TemporaryDirectory() as tmp:
@@ -105,12 +107,13 @@ def main() -> None:
                                      f"{np.sqrt(mse[sampling]) / rms:.4f}",
                                      f"{mse['cosine'] / mse[sampling]:.2f}",
                                      f"{1e6 * tps[sampling]:.2f}"])
-    table(f"{args.size}x{args.size}, {args.spp} spp (mean of {args.seeds} seeds) "
-          f"vs {args.ref_spp}-spp reference, {variant}",
-          ["material", "scene", "integrator", "sampling", "spp", "rel. RMSE", "MSE cos/this",
-           "us/sample"], rows)
+    rep.table(f"{args.size}x{args.size}, {args.spp} spp (mean of {args.seeds} seeds) "
+              f"vs {args.ref_spp}-spp reference, {variant}",
+              ["material", "scene", "integrator", "sampling", "spp", "rel. RMSE", "MSE cos/this",
+               "us/sample"], rows)
     for b in builds:
-        print(b)
+        rep.note(b)
+    rep.write()
 
 
 if __name__ == "__main__":

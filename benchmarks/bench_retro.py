@@ -28,7 +28,7 @@ import tempfile
 import time
 from pathlib import Path
 
-from _bench import table
+from _bench import add_markdown_option, report
 
 DATA = Path(os.environ.get("RATFIT_SHARED_DATA", Path(__file__).resolve().parents[1].parent
                            / "shared" / "data"))
@@ -100,7 +100,9 @@ def main() -> None:
                     help="repair rounds to compare, the first one the baseline")
     ap.add_argument("--files", default=",".join(FILES))
     ap.add_argument("--timeout", type=float, default=900.0)
+    add_markdown_option(ap)
     a = ap.parse_args()
+    rep = report(a, __file__)
     rounds = [int(r) for r in a.rounds.split(",")]
     rows, summary = [], []
     for name in a.files.split(","):
@@ -130,13 +132,14 @@ def main() -> None:
             n_ok = sum(1 for g in got if g["rc"] == 0 and g.get("verified"))
             summary.append([name, str(r), f"{n_ok}/{len(got)}", f"{med:.1f}",
                             f"{med / base:.2f}"])
-    table("each default fit (yes*: the time limit ended the search after the fit was "
-          "found, the total may not be minimal)",
-          ["file", "repair rounds", "run", "exit", "verified", "parametrization", "dt",
-           "n+m", "RMSE / log RMSE", "s", "peak MB"], rows)
-    table(f"per file and setting, {os.cpu_count()} cores (x base: median seconds / the "
-          "first setting's, same run)",
-          ["file", "repair rounds", "verified", "median s", "x base"], summary)
+    rep.table("each default fit (yes*: the time limit ended the search after the fit was "
+              "found, the total may not be minimal)",
+              ["file", "repair rounds", "run", "exit", "verified", "parametrization", "dt",
+               "n+m", "RMSE / log RMSE", "s", "peak MB"], rows)
+    rep.table(f"per file and setting, {os.cpu_count()} cores (x base: median seconds / the "
+              "first setting's, same run)",
+              ["file", "repair rounds", "verified", "median s", "x base"], summary)
+    rep.write()
 
 
 if __name__ == "__main__":

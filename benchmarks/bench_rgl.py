@@ -23,14 +23,13 @@ from __future__ import annotations
 import argparse
 import json
 import os
-import platform
 import subprocess
 import sys
 import tempfile
-from datetime import UTC, datetime
 from pathlib import Path
 
 import numpy as np
+from _bench import add_markdown_option, report  # benchmarks/_bench.py
 
 REPO = Path(__file__).resolve().parents[1]
 DEFAULT_DATA = Path(os.environ.get("RATFIT_SHARED_DATA", REPO.parent / "shared" / "data"))
@@ -137,6 +136,7 @@ def main() -> None:
     ap.add_argument("--limit", type=int, help="at most this many materials")
     ap.add_argument("--timeout", type=float, default=400.0, help="seconds per fit")
     ap.add_argument("--pairs", type=int, default=100_000, help="random direction pairs")
+    add_markdown_option(ap)
     args = ap.parse_args()
 
     files = sorted(args.data.glob("*.npz"))
@@ -149,43 +149,39 @@ def main() -> None:
     if not files:
         sys.exit(f"error: no .npz material in {args.data} matches")
 
-    commit = subprocess.run(["git", "-C", str(REPO), "rev-parse", "--short", "HEAD"],
-                            capture_output=True, text=True).stdout.strip()
-    print(f"# bench_rgl  {datetime.now(UTC):%Y-%m-%d %H:%M} UTC  commit {commit}  "
-          f"{platform.node()} {platform.machine()} {os.cpu_count()} cpu  "
-          f"python {platform.python_version()}")
-    print(f"# default `ratfit brdf fit TABLE -o fit.json` on full MERL tables; timeout "
-          f"{args.timeout:.0f} s; {args.pairs} seeded pairs, L and V uniform on the "
-          f"hemisphere (all) or on the cap cos >= 0.1; rel = |f - y| / max(y, {FLOOR:g})")
-    header = ("material", "ch", "n+m", "med% all", "p95% all", "med% c>.1", "p95% c>.1",
-              "s", "peak MB", "verified")
-    print("  ".join(header))
+    rep = report(args, __file__)
+    header = ["material", "ch", "n+m", "med% all", "p95% all", "med% c>.1", "p95% c>.1",
+              "s", "peak MB", "verified"]
+    rows = []
     met = 0
     for npz in files:
         r = run_one(npz, args.timeout, args.pairs)
         ok_fit = r["rc"] == 0 and "errors" in r
         status = ("yes" if ok_fit else
                   f"timeout {args.timeout:.0f} s" if r["rc"] is None else f"no (exit {r['rc']})")
+        print(f"{r['name']}: {status}, {r['seconds']:.0f} s", file=sys.stderr, flush=True)
         if "errors" not in r:
             nm = "/".join(map(str, r["coefs"])) if r.get("coefs") else "-"
-            print(f"{r['name']}  RGB  {nm}  -  -  -  -  {r['seconds']:.0f}  "
-                  f"{r['peak_mb']:.0f}  {status}"
-                  + (f"  [{r['why'][0][:120]}]" if r.get("why") else ""))
-            sys.stdout.flush()
+            why = f" [{r['why'][0][:120]}]" if r.get("why") else ""
+            rows.append([r["name"], "RGB", nm, "-", "-", "-", "-", f"{r['seconds']:.0f}",
+                         f"{r['peak_mb']:.0f}", status + why])
             continue
         e = r["errors"]
         good = ok_fit and sum(r["coefs"]) <= MAX_NUMBERS
         for c, ch in enumerate("RGB"):
             med, p95 = e["all"][0, c], e["all"][1, c]
             good = good and med < 0.05 and p95 < 0.25
-            print(f"{r['name']}  {ch}  {r['coefs'][c]}  {fmt_pct(med)}  {fmt_pct(p95)}  "
-                  f"{fmt_pct(e['cos>0.1'][0, c])}  {fmt_pct(e['cos>0.1'][1, c])}  "
-                  f"{r['seconds']:.0f}  {r['peak_mb']:.0f}  {status}")
+            rows.append([r["name"], ch, str(r["coefs"][c]), fmt_pct(med), fmt_pct(p95),
+                         fmt_pct(e["cos>0.1"][0, c]), fmt_pct(e["cos>0.1"][1, c]),
+                         f"{r['seconds']:.0f}", f"{r['peak_mb']:.0f}", status])
         met += good
-        sys.stdout.flush()
-    print(f"# summary: {met} of {len(files)} materials verified with median < 5 % and "
-          f"p95 < 25 % (all pairs) in every channel and <= {MAX_NUMBERS} numbers")
-
+    rep.table(f"default `ratfit brdf fit TABLE -o fit.json` on full MERL tables; timeout "
+              f"{args.timeout:.0f} s; {args.pairs} seeded pairs, L and V uniform on the "
+              f"hemisphere (all) or on the cap cos >= 0.1 (c>.1); rel = |f - y| / max(y, "
+              f"{FLOOR:g})", header, rows,
+              note=f"{met} of {len(files)} materials verified with median < 5 % and p95 < "
+                   f"25 % (all pairs) in every channel and <= {MAX_NUMBERS} numbers.")
+    rep.write()
 
 if __name__ == "__main__":
     main()

@@ -15,9 +15,11 @@ Run: python benchmarks/bench_tolerance.py [--points 500] [--rtol 1e-2]
 from __future__ import annotations
 
 import argparse
+import sys
 import time
 
 import numpy as np
+from _bench import add_markdown_option, report  # benchmarks/_bench.py
 
 from ratfit.demos.addendum import addendum_function
 from ratfit.fitting.tolerance import aaa_error, best_width
@@ -28,24 +30,29 @@ def main() -> None:
     ap.add_argument("--points", type=int, default=500)
     ap.add_argument("--rtol", type=float, default=1e-2)
     ap.add_argument("--degrees", type=int, nargs="+", default=[4, 6, 8, 10, 12, 14, 17, 20])
+    add_markdown_option(ap)
     args = ap.parse_args()
+    rep = report(args, __file__)
     x = np.linspace(-3.0, 12.0, args.points)
     y = addendum_function(x)
-    head = (f"{'d':>3} {'params':>6} {'AAA max rel':>12} {'AAA poles':>9} {'ratfit width':>13} "
-            f"{'certified':>9} {'ratio':>9} {'QPs':>4} {'s':>6}")
-    print(f"seed function, {args.points} points on [-3, 12], rtol {args.rtol}")
-    print(head)
-    print("-" * len(head))
+    rows = []
     for d in args.degrees:
         aaa = aaa_error(x, y, d)
         t0 = time.perf_counter()
         res = best_width(x, y, d + 1, d + 1, rtol=args.rtol)
         secs = time.perf_counter() - t0
         ratio = res.width / aaa["max_rel_error"]
-        print(f"{d:>3} {2 * d + 1:>6} {aaa['max_rel_error']:>12.3e} "
-              f"{aaa['real_poles_in_domain']:>9} {res.width:>13.3e} "
-              f"{'yes' if res.lower_certified else 'no':>9} {ratio:>9.2e} "
-              f"{len(res.steps):>4} {secs:>6.1f}", flush=True)
+        rows.append([str(d), str(2 * d + 1), f"{aaa['max_rel_error']:.3e}",
+                     str(aaa["real_poles_in_domain"]), f"{res.width:.3e}",
+                     "yes" if res.lower_certified else "no", f"{ratio:.2e}",
+                     str(len(res.steps)), f"{secs:.1f}"])
+        print(f"d {d}: {secs:.1f} s", file=sys.stderr, flush=True)
+    rep.table(f"seed function, {args.points} points on [-3, 12], rtol {args.rtol}: ratfit's "
+              "best width at n = m = d + 1 against AAA's error at type (d, d) (ratio: width / "
+              "AAA error, same run)",
+              ["d", "params", "AAA max rel", "AAA poles", "ratfit width", "certified",
+               "ratio", "QPs", "s"], rows)
+    rep.write()
 
 
 if __name__ == "__main__":

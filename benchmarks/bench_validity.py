@@ -23,7 +23,7 @@ import time
 from pathlib import Path
 
 import numpy as np
-from _bench import table
+from _bench import add_markdown_option, report
 
 
 def hemisphere(n: int, seed: int) -> tuple[np.ndarray, np.ndarray]:
@@ -91,7 +91,9 @@ def main() -> None:
     ap.add_argument("fits", nargs="+", type=Path)
     ap.add_argument("--pairs", type=int, default=1_000_000)
     ap.add_argument("--seed", type=int, default=0)
+    add_markdown_option(ap)
     args = ap.parse_args()
+    rep = report(args, __file__)
     L, V = hemisphere(args.pairs, args.seed)
     rows = []
     for path in args.fits:
@@ -119,10 +121,11 @@ def main() -> None:
                 "yes" if pr and pr.get("proved") else "no",
                 f"{pr['q_margin']:.1e}" if pr else "-",
                 f"{t_eval:.2f}/{t_c:.2f}/{t_mat:.2f}"])
-    table(f"{args.pairs} random pairs over the hemisphere (seed {args.seed})",
-          ["fit", "ch", "min eval", "min C", "min plugin", "neg|nonfinite", "C vs eval",
-           "plugin vs eval", "phi_d spread th_h=0", "proved", "q margin",
-           "s eval/C/plugin"], rows)
+    rep.table(f"{args.pairs} random pairs over the hemisphere (seed {args.seed})",
+              ["fit", "ch", "min eval", "min C", "min plugin", "neg|nonfinite", "C vs eval",
+               "plugin vs eval", "phi_d spread th_h=0", "proved", "q margin",
+               "s eval/C/plugin"], rows)
+    rep.write()
 
 
 if __name__ == "__main__":

@@ -21,6 +21,7 @@ import time
 from pathlib import Path
 
 import numpy as np
+from _bench import ModelComparison, add_markdown_option, report  # benchmarks/_bench.py
 
 from ratfit.brdf.analytic_models import Model, fit_model
 from ratfit.brdf.fitter import brdf_metrics, candidate_parametrizations, fit_brdf_auto
@@ -66,32 +67,32 @@ def main() -> None:
     ap.add_argument("--data", type=Path, default=REPO.parent / "shared" / "data")
     ap.add_argument("--only", help="run the materials whose name contains this")
     ap.add_argument("--jobs", type=int, default=None)
+    add_markdown_option(ap)
     args = ap.parse_args()
-    print(f"{'material':<12} {'ch':<2} {'n+m':>6} " + " ".join(
-        f"{k + ' rat/model':>22}" for k in METRICS) + f" {'wins':>5} {'fit s':>6}")
-    wins = total = 0
+    rep = report(args, __file__)
+    cmp = ModelComparison(METRICS, {"rmse": "RMSE", "log_rmse": "log RMSE",
+                                    "cos_rmse": "cos RMSE"})
     for name in MATERIALS:
         if args.only and args.only not in name:
             continue
         ds, rat, models, secs = run(args.data / "cornell" / f"{name}.brdf", args.jobs)
         if rat is None:
-            print(f"{name:<12} no verified default fit ({secs:.0f} s)")
+            for ch in ds.output_names:
+                cmp.add_missing(name, ch, "-", "no verified default fit", secs)
             continue
         for ch in ds.output_names:
-            cells, won = [], True
-            for k in METRICS:
-                best = min(models, key=lambda s, k=k, ch=ch: models[s][ch][k])
-                b, r = models[best][ch][k], rat[ch][k]
-                won &= r < b
-                cells.append(f"{r:8.4f}/{b:7.4f} {b / r:4.1f}x")
-            wins += won
-            total += 1
-            print(f"{name:<12} {ch:<2} {rat[ch]['nm']:>6} " + " ".join(f"{c:>22}" for c in cells)
-                  + f" {'yes' if won else 'no':>5} {secs:6.1f}")
-    print(f"\nthe default rational fit beats the better of {', '.join(MODELS)} on all of "
-          f"{', '.join(METRICS)} in {wins} of {total} channels")
-    print("(each cell: rational / better model, then model / rational; fit s: the "
-          "material's three channels)")
+            cmp.add(name, ch, rat[ch]["nm"], rat[ch], models, secs)
+    rep.table(f"default rational fit against the better of {', '.join(MODELS)}, per channel",
+              cmp.header("n+m", "fit s"), cmp.rows,
+              note=f"The default rational fit beats the better model on all of "
+                   f"{', '.join(METRICS)} in {cmp.wins} of {cmp.total} channels. Each cell: "
+                   "rational / better model (model / rational); fit s: the material's "
+                   "three channels.")
+    fig = cmp.figure()
+    if fig is not None:
+        rep.figure(fig, "compare_models", "better analytic model's error / rational fit's, "
+                   "per channel (above 1: the rational fit is better)")
+    rep.write()
 
 
 if __name__ == "__main__":

@@ -19,10 +19,12 @@ from __future__ import annotations
 
 import argparse
 import itertools
+import sys
 import time
 from pathlib import Path
 
 import numpy as np
+from _bench import add_markdown_option, report  # benchmarks/_bench.py
 from numpy.polynomial import legendre
 from scipy.optimize import linprog
 
@@ -62,14 +64,17 @@ def main() -> None:
     ap.add_argument("--data", type=Path, default=REPO.parent / "shared" / "data")
     ap.add_argument("--total", type=int, default=23)
     ap.add_argument("--width", type=float, default=0.5)
+    add_markdown_option(ap)
     a = ap.parse_args()
+    rep = report(a, __file__)
     ds = brdf_dataset(a.data / "alta" / "retro-3M-jaune.dat", None)
     seg = nonnegative_segments(brdf_segments(ds, abs_width=a.width))
     caps = axis_degree_caps(seg.x)
     space = PolynomialSpace("legendre", seg.bounds(), "total", caps)
-    print(f"{ds.meta['param_in']}, {seg.n_points} samples, segments y +- {a.width}, "
-          f"degree caps per axis {caps} (distinct values - 1)")
-    print(f"{'n':>3} {'m':>3}  {'proof':<34} {'s':>5}")
+    title = (f"{ds.meta['param_in']}, {seg.n_points} samples, segments y +- {a.width}, "
+             f"degree caps per axis {caps} (distinct values - 1): every split of "
+             f"{a.total} coefficients")
+    rows = []
     covered_all = True
     for n in range(1, a.total):
         m = a.total - n
@@ -83,14 +88,18 @@ def main() -> None:
                     ok, how = True, f"inside ({n + dn}, {m + dm}), exact ({form2})"
                     break
         covered_all &= ok
-        print(f"{n:>3} {m:>3}  {how or 'NOT PROVED':<34} {time.perf_counter() - t0:5.1f}")
-    print(f"\nno rational with at most {a.total} coefficients fits: "
-          f"{'PROVED (exact arithmetic, every split)' if covered_all else 'not proved'}")
-    print("\npolynomials (m = 1), smallest max |p - y| by HiGHS LP (fits only if < width):")
-    print(f"{'degree':>6} {'terms':>6} {'max error':>10}")
+        rows.append([str(n), str(m), how or "NOT PROVED", f"{time.perf_counter() - t0:.1f}"])
+        print(f"{n} + {m}: {how or 'NOT PROVED'}", file=sys.stderr, flush=True)
+    rep.table(title, ["n", "m", "proof", "s"], rows,
+              note=f"No rational with at most {a.total} coefficients fits: "
+                   f"{'PROVED (exact arithmetic, every split)' if covered_all else 'not proved'}.")
+    poly = []
     for d in range(2, 7):
         k, err = polynomial_minimax(seg.x, seg.center[:, 0], d, caps)
-        print(f"{d:>6} {k:>6} {err:>10.4f}")
+        poly.append([str(d), str(k), f"{err:.4f}"])
+    rep.table(f"polynomials (m = 1), smallest max |p - y| by HiGHS LP (fits only if < "
+              f"{a.width})", ["degree", "terms", "max error"], poly)
+    rep.write()
 
 
 if __name__ == "__main__":

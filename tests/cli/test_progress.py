@@ -80,3 +80,24 @@ def test_step_lines_are_throttled_notes_are_not(monkeypatch, capsys) -> None:
     with StepProgress("quiet", 2, enabled=False, tty=False) as bar:
         bar.advance(2)
     assert capsys.readouterr().err == ""
+
+
+def test_step_progress_estimates_from_the_steps_run_now(capsys) -> None:
+    """A resumed batch: steps done before count in the total, not in the rate; the
+    running status sits after the count; the estimate switches to minutes at 120 s."""
+    from ratfit._progress import StepProgress, time_left
+
+    bar = StepProgress("batch", 10, tty=False, done=4, every=3600.0).start()
+    bar.t0 = 1000.0
+    bar.advance(2, status="1 failed or no fit")  # the first line waits for `every`
+    assert capsys.readouterr().err == ""
+    # 2 steps run now in 30 s: 4 left take 60 s (the 4 resumed ones are not timed)
+    assert bar.line(now=1030.0, note="R", status="1 failed or no fit") == (
+        "ratfit: batch 6/10, 1 failed or no fit, 30 s, about 60 s left (R)")
+    assert bar.line(now=1300.0) == "ratfit: batch 6/10, 300 s, about 10 min left"
+    bar.advance(4, status="1 failed or no fit")  # the last step always prints
+    (last,) = capsys.readouterr().err.splitlines()
+    assert last.startswith("ratfit: batch 10/10, 1 failed or no fit, ") and "left" not in last
+    assert time_left(10.0, 0, 5) == "" and time_left(10.0, 5, 5) == ""
+    assert time_left(59.0, 1, 3) == "about 118 s left"
+    assert time_left(61.0, 1, 3) == "about 2 min left"

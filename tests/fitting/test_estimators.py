@@ -149,3 +149,36 @@ def test_ratfit_imports_without_sklearn() -> None:
     )
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert out.stdout.strip() == "RationalFitter(n=2, m=1)"
+
+
+def test_shared_denominator_takes_x_and_y_like_a_regressor() -> None:
+    """fit(X, y) builds the segments from dt as RationalFitter does; predict and score
+    make it a scikit-learn regressor (cross_val_score runs)."""
+    from sklearn.model_selection import KFold, cross_val_score
+
+    x = np.linspace(-1, 1, 40)
+    y = np.stack([1 / (2 + x), x / (2 + x)], axis=1)
+    f = SharedDenominatorFitter(dt=0.01, max_n=8, max_m=4)
+    assert f.fit(x, y) is f and f.success_
+    g = SharedDenominatorFitter(max_n=8, max_m=4).fit(Segments.from_widths(x, y, dt=0.01))
+    assert (f.result_.n, f.result_.m) == (g.result_.n, g.result_.m)
+    for a, b in zip(f.results_, g.results_, strict=True):
+        assert np.allclose(a.rational(x), b.rational(x))
+    pred = f.predict(x)
+    assert pred.shape == (40, 2)
+    # verified: inside the segments at every sample, [(1 - dt) y, (1 + dt) y]
+    assert np.all(np.abs(pred - y) <= 0.01 * np.abs(y) + 1e-12)
+    r2 = 1 - ((y - pred) ** 2).sum(0) / ((y - y.mean(0)) ** 2).sum(0)
+    assert f.score(x, y) == pytest.approx(r2.mean()) and f.score(x, y) > 0.999
+    assert f.predict(x[:5])[:, 1] == pytest.approx(f.results_[1].rational(x[:5]))
+    scores = cross_val_score(SharedDenominatorFitter(dt=0.01, max_n=8, max_m=4), x, y,
+                             cv=KFold(4, shuffle=True, random_state=0))
+    assert scores.shape == (4,) and np.all(scores > 0.99)
+    with pytest.raises(InputError, match="without y"):
+        SharedDenominatorFitter(dt=0.01).fit(x)
+    with pytest.raises(InputError, match="builds segments around y"):
+        SharedDenominatorFitter().fit(x, y)
+    with pytest.raises(InputError, match="bounds of their own"):
+        SharedDenominatorFitter(dt=0.01).fit(Segments.from_widths(x, y, dt=0.01))
+    with pytest.raises(InputError, match="dt"):
+        SharedDenominatorFitter(dt=-1.0).fit(x, y)

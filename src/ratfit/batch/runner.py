@@ -75,6 +75,7 @@ from pathlib import Path
 from typing import Any
 
 from ratfit._atomic import atomic_dir, atomic_open, atomic_path
+from ratfit._progress import StepProgress
 from ratfit.brdf.options import BRDF_SOLVER, BRDF_TIME_LIMIT
 from ratfit.core.options import FIT_OPTIONS, SEGMENT_OPTIONS
 from ratfit.core.validation import check_bool, check_choice, check_int, check_width
@@ -973,7 +974,12 @@ def _run_into(work: Path, out: Path, tasks: list[Task], unreadable: list[dict[st
     with _cluster(client, scheduler, workers, allowed_failures) as cl:
         from distributed import as_completed
 
-        bar = _Bar(len(tasks), len(rows), progress)
+        # done / total, failed so far, time spent and left (from the tasks run now:
+        # resumed ones are counted, not timed); a bar on a terminal, else a line at
+        # most every PROGRESS_EVERY seconds and at the end
+        bar = StepProgress("batch", len(tasks), enabled=progress, done=len(rows),
+                           every=lambda: PROGRESS_EVERY).start()
+        failed = 0
         tag = uuid.uuid4().hex[:8]
         futures: dict[Any, Task] = {}
         try:
@@ -989,7 +995,8 @@ def _run_into(work: Path, out: Path, tasks: list[Task], unreadable: list[dict[st
                 _store(work, t, row, doc)
                 rows[t.name] = row
                 summary.fitted += 1
-                bar.advance(row["status"])
+                failed += row["status"] != "ok"
+                bar.advance(1, status=f"{failed} failed or no fit")
                 if on_result is not None:
                     on_result(_public(row))
         except KeyboardInterrupt:
@@ -1004,61 +1011,3 @@ def _run_into(work: Path, out: Path, tasks: list[Task], unreadable: list[dict[st
 # seconds between progress lines in a log (no terminal)
 PROGRESS_EVERY = 5.0
 
-class _Bar:
-    """Progress on stderr: done / failed / remaining with the time spent and an estimate
-    of the time left. A rich bar on a terminal; elsewhere (a log) a plain line at most
-    every :data:`PROGRESS_EVERY` seconds and at the end."""
-
-    def __init__(self, total: int, done: int, enabled: bool) -> None:
-        self.failed = 0
-        self.total = total
-        self.start_done = done
-        self.left = total - done
-        self.p = None
-        self.lines = enabled and not sys.stderr.isatty()
-        self.t0 = self.last = time.monotonic()
-        if not enabled or self.lines:
-            return
-        from rich.console import Console
-        from rich.progress import (
-            BarColumn,
-            MofNCompleteColumn,
-            Progress,
-            TextColumn,
-            TimeElapsedColumn,
-            TimeRemainingColumn,
-        )
-
-        self.p = Progress(
-            TextColumn("fitting"), BarColumn(), MofNCompleteColumn(),
-            TextColumn("{task.fields[failed]} failed or no fit, {task.fields[left]} remaining"),
-            TimeElapsedColumn(), TextColumn("left"), TimeRemainingColumn(),
-            console=Console(stderr=True),
-        )
-        self.task = self.p.add_task("fits", total=total, completed=done, failed=0,
-                                    left=self.left)
-        self.p.start()
-
-    def advance(self, status: str) -> None:
-        self.left -= 1
-        self.failed += status != "ok"
-        if self.p is not None:
-            self.p.update(self.task, advance=1, failed=self.failed, left=self.left)
-        elif self.lines:
-            now = time.monotonic()
-            if now - self.last >= PROGRESS_EVERY or self.left == 0:
-                self.last = now
-                el = now - self.t0
-                run_now = self.total - self.start_done - self.left
-                eta = ""
-                if self.left and run_now:
-                    rest = el / run_now * self.left
-                    eta = (f", about {rest:.0f} s left" if rest < 120
-                           else f", about {rest / 60:.0f} min left")
-                print(f"ratfit: batch {self.total - self.left}/{self.total}, {self.failed} "
-                      f"failed or no fit, {el:.0f} s{eta}", file=sys.stderr, flush=True)
-
-    def stop(self) -> None:
-        if self.p is not None:
-            self.p.stop()
-            self.p = None

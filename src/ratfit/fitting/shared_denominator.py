@@ -36,18 +36,19 @@ import time
 from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
-from typing import Any, ClassVar
+from typing import Any, ClassVar, cast
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from ratfit.core.arnoldi import ArnoldiBasis
 from ratfit.core.bases import PolynomialSpace
-from ratfit.core.estimator import Estimator
+from ratfit.core.estimator import Regressor
 from ratfit.core.options import (
     DEFAULT_TIME_LIMIT,
     DEFAULT_WORK_LIMIT,
     FIT_OPTIONS,
+    SEGMENT_OPTIONS,
     FitOptions,
     Option,
     check_options_class,
@@ -301,11 +302,23 @@ class SharedFit:
         return "; ".join(f"{r.channel}: {r.message}" for r in bad)
 
 
-class SharedDenominatorFitter(Estimator):
+class SharedDenominatorFitter(Regressor):
     """Fit every channel with one denominator and the fewest coefficients sum(n_c) + m.
+
+    A scikit-learn regressor in shape, like
+    :class:`~ratfit.fitting.search.RationalFitter`: ``fit(X, y)`` builds the segments
+    from ``dt`` and/or ``abs_width`` (``y`` of shape (N, k): one channel per column),
+    ``predict(X)`` evaluates every channel and ``score`` is R^2; ``fit(segments)``
+    takes prepared :class:`~ratfit.core.segments.Segments` instead.
 
     Parameters
     ----------
+    dt : float, optional
+        Relative half-width of the segments ``fit(X, y)`` builds:
+        [(1 - dt) y, (1 + dt) y].
+    abs_width : float, optional
+        Absolute half-width [y - w, y + w] (with ``dt`` each segment is the union of
+        both). ``fit(X, y)`` needs one of the two; ``fit(segments)`` needs neither.
     basis, index_set, domain, solver, cross_check, callback, active_set, formulation, \
 variable, warm_start
         As for :class:`~ratfit.fitting.search.RationalFitter` (``variable`` "x" or
@@ -348,11 +361,15 @@ variable, warm_start
     >>> f = SharedDenominatorFitter(max_n=8, max_m=4).fit(Segments.from_relative(x, y, 0.01))
     >>> f.success_, f.result_.m
     (True, 2)
+    >>> g = SharedDenominatorFitter(dt=0.01, max_n=8, max_m=4).fit(x, y)
+    >>> g.result_.m, g.predict([0.5]).round(2).tolist()
+    (2, [[0.4, 0.2]])
     """
 
     options_type: ClassVar[type[SharedOptions]] = SharedOptions
 
-    def __init__(self, *, basis: str = "legendre", index_set: str = "total",
+    def __init__(self, *, dt: float | None = None, abs_width: float | None = None,
+                 basis: str = "legendre", index_set: str = "total",
                  domain: ArrayLike | None = None, m: int | None = None, max_n: int = 60,
                  max_m: int = 30, solver: str = "quadprog", cross_check: str = "orth",
                  jobs: int | None = 1,
@@ -363,6 +380,7 @@ variable, warm_start
                  strategy: str = "staircase", split_rule: str = "min-m",
                  active_set: bool | None = None, formulation: str = "auto",
                  variable: str = "auto", warm_start: bool = True) -> None:
+        self.dt, self.abs_width = dt, abs_width
         self.basis, self.index_set, self.domain = basis, index_set, domain
         self.m, self.max_n, self.max_m = m, max_n, max_m
         self.solver, self.cross_check = solver, cross_check
@@ -380,14 +398,32 @@ variable, warm_start
         return cls(**options.params())
 
     def options(self) -> SharedOptions:
-        """The constructor parameters as checked options (InputError when one is bad)."""
-        return self.options_type.from_params(self.get_params(deep=False))
+        """The constructor parameters as checked options (InputError when one is bad);
+        the segment widths (``dt``, ``abs_width``) are not among them."""
+        params = self.get_params(deep=False)
+        for name in SEGMENT_OPTIONS:
+            SEGMENT_OPTIONS[name].check(params.pop(name))
+        return self.options_type.from_params(params)
 
-    def fit(self, seg: Segments) -> SharedDenominatorFitter:
-        """Search the shared-denominator sizes for ``seg``; returns self."""
-        if not isinstance(seg, Segments):
-            raise TypeError(f"fit() takes a Segments object, got {type(seg).__name__}")
+    def segments_of(self, X: ArrayLike | Segments, y: ArrayLike | None = None) -> Segments:
+        """The segments ``fit(X, y)`` fits, by :meth:`RationalFitter.segments_of
+        <ratfit.fitting.search.RationalFitter.segments_of>`'s rules (the same refusals)."""
+        # it reads only dt, abs_width and the class name: shared, not copied
+        return RationalFitter.segments_of(cast(Any, self), X, y)
+
+    def fit(self, X: ArrayLike | Segments, y: ArrayLike | None = None) -> SharedDenominatorFitter:
+        """Search the shared-denominator sizes; returns self.
+
+        Parameters
+        ----------
+        X : array-like of shape (N,) or (N, d), or Segments
+            Points (with ``y``), or prepared segments (without).
+        y : array-like of shape (N, k), optional
+            Values, one channel per column; the segments are built around them from
+            ``dt`` / ``abs_width``.
+        """
         self.options_ = opts = self.options()
+        seg = self.segments_of(X, y)
         plain = FitOptions(**{k: getattr(opts, k) for k in ("basis", "index_set", "domain",
                                                              "solver", "cross_check")})
         # the same checks and messages as a normal fit
@@ -406,6 +442,17 @@ variable, warm_start
                 "this SharedDenominatorFitter is not fitted yet: call fit() first"
             )
         return self.result_.success
+
+    def predict(self, X: ArrayLike) -> NDArray[np.float64]:
+        """Values of every channel at points ``X`` (N, d) or (N,) in 1-D: shape (N, k),
+        (N,) for one channel. Needs a verified shared fit (``success_``)."""
+        if not self.success_:
+            raise InputError(f"no verified shared fit ({self.result_.message}): nothing to "
+                             "predict with; widen the segments (dt, abs_width) or raise "
+                             "max_n / max_m")
+        cols = [np.asarray(r.rational(X), dtype=float).reshape(-1) for r in self.results_
+                if r.rational is not None]
+        return cols[0] if len(cols) == 1 else np.stack(cols, axis=1)
 
 
 class _OutOfTime(Exception):

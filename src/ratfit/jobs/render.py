@@ -182,12 +182,22 @@ def _sampler(req: RenderRequest, material: Any, report: RenderReport | None, clo
 
     if req.sampling != "fit":
         return None
+    from ratfit._progress import time_left
+
     req.say(what)
     t0 = time.perf_counter()
+    label = "sampler" if report is not None else "data sampler"
+
+    def step(done: int, total: int) -> None:
+        # "~": a step of a long task, like a render pass (one status line on a terminal)
+        el = time.perf_counter() - t0
+        req.say(f"~{label}: CDF {done}/{total}, {el:.1f} s, "
+                + ("done" if done == total else time_left(el, done, total)))
+
     with clock.phase("sampler"):
         sampler = HalfVectorSampler(cosine_weight=req.cosine_weight,
                                     n_incidence=req.incidence_nodes,
-                                    n_conditional=req.conditional_nodes).fit(material)
+                                    n_conditional=req.conditional_nodes).fit(material, step)
     if report is not None:
         dt = time.perf_counter() - t0
         req.say(f"sampler: {sampler.fits_} verified rational CDFs (total n+m "

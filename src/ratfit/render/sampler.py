@@ -85,6 +85,18 @@ class _Node:
     fallbacks: int
 
 
+class _Counter:
+    """CDF fits done out of ``total``, each reported to ``progress(done, total)``."""
+
+    def __init__(self, total: int, progress: Callable[[int, int], None] | None) -> None:
+        self.done, self.total, self.progress = 0, total, progress
+
+    def step(self) -> None:
+        self.done += 1
+        if self.progress is not None:
+            self.progress(self.done, self.total)
+
+
 class HalfVectorSampler:
     """Importance sampler of a BRDF ``f(L, V) -> (N, k)`` (L = wo, V = wi; reciprocal).
 
@@ -119,8 +131,12 @@ class HalfVectorSampler:
         self.max_total = max_total
 
     # ------------------------------------------------------------------ fitting
-    def fit(self, brdf: BRDFFunction) -> HalfVectorSampler:
-        """Tabulate the target and fit every CDF; InputError when one has no verified fit."""
+    def fit(self, brdf: BRDFFunction,
+            progress: Callable[[int, int], None] | None = None) -> HalfVectorSampler:
+        """Tabulate the target and fit every CDF; InputError when one has no verified fit.
+
+        ``progress(done, total)`` is called after each CDF fit (a marginal and
+        ``n_conditional`` conditionals per incidence node)."""
         if not 0.0 <= self.cosine_weight <= 1.0:
             raise InputError(f"cosine_weight must lie in [0, 1], got {self.cosine_weight!r}")
         if self.n_incidence < 1 or self.n_conditional < 2 or self.n_theta < 8 or self.n_phi < 8:
@@ -139,6 +155,7 @@ class HalfVectorSampler:
         st = np.sin(TH).ravel()
         h = np.stack([st * np.cos(PH.ravel()), st * np.sin(PH.ravel()), np.cos(TH).ravel()], 1)
         self.nodes_, fits, coef, fallbacks = [], 0, 0, 0
+        counter = _Counter(len(ti) * (1 + len(kc)), progress)
         for t in ti:
             wi = np.array([np.sin(t), 0.0, np.cos(t)])
             g = self._tabulate(brdf, wi, h)
@@ -146,7 +163,7 @@ class HalfVectorSampler:
             if not self._isotropic(brdf):
                 # |phi_h| is what is fitted: symmetrise (exact for isotropic BRDFs)
                 G = 0.5 * (G + self._tabulate(brdf, wi, h * [1.0, -1.0, 1.0]).reshape(TH.shape))
-            node = self._fit_node(xg, ph, G, kc)
+            node = self._fit_node(xg, ph, G, kc, counter)
             self.nodes_.append(node.cdf)
             fits += node.n_fits
             coef += node.total_coefficients
@@ -188,7 +205,8 @@ class HalfVectorSampler:
             raise InputError(f"no verified rational CDF even for a uniform density: {res.message}")
         return RationalCDF(res.rational), int(res.n + res.m), True
 
-    def _fit_node(self, xg: Array, ph: Array, G: Array, kc: NDArray[np.int64]) -> _Node:
+    def _fit_node(self, xg: Array, ph: Array, G: Array, kc: NDArray[np.int64],
+                  counter: _Counter) -> _Node:
         from scipy.integrate import trapezoid
 
         top = float(G.max())
@@ -198,11 +216,13 @@ class HalfVectorSampler:
         marg = trapezoid(G, ph, axis=1)
         marg = marg + 1e-3 * float(marg.max())
         marginal, c, fb = self._fit_cdf(xg, marg)
+        counter.step()
         total, conds, fallbacks = c, [], int(fb)
         for k in kc:
             row = G[k]
             row = row + 1e-3 * max(float(row.max()), 1e-3 * top)
             cond, c, fb = self._fit_cdf(ph, row)
+            counter.step()
             conds.append(cond)
             total += c
             fallbacks += int(fb)

@@ -14,6 +14,7 @@ from collections.abc import Callable
 import numpy as np
 from numpy.typing import NDArray
 
+from ratfit._progress import time_left
 from ratfit.errors import InputError
 
 __all__ = ["SCENES", "environment_map", "render_image", "sphere_view"]
@@ -141,9 +142,7 @@ def render_image(material, *, size: int = 256, spp: int = 64, sampling: str = "f
         done += n
         if progress is not None:
             el = time.perf_counter() - t0
-            left = el / done * (spp - done)
-            eta = ("done" if done == spp else f"about {left:.0f} s left" if left < 120
-                   else f"about {left / 60:.0f} min left")
+            eta = "done" if done == spp else time_left(el, done, spp)
             # "~": a step of a long task (a terminal shows it on one status line)
             progress(f"~{label}: pass {k + 1}/{passes}, {done}/{spp} spp, {el:.1f} s, {eta}")
     return acc / spp
