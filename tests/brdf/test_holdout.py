@@ -94,3 +94,27 @@ def test_cli_records_the_holdout_in_the_fit_file(tmp_path: Path, shared_data: Pa
         "-o", str(tmp_path / "no.json")])
     assert r.exit_code == 2 and "--holdout must be >= 2" in r.output
     assert not (tmp_path / "no.json").exists()
+
+
+def test_one_sample_that_carries_the_held_out_error_is_named():
+    from ratfit.brdf.holdout import WORST_SHARE, HoldoutResult
+
+    y = np.array([[1.0, 1.0], [2.0, 2.0], [39.0, 3.0], [0.5, 0.5]])
+    pred = np.array([[1.1, 1.1], [1.9, 2.2], [1.0, 3.1], [np.nan, 0.4]])
+    names = ("R", "G")
+    seen = np.isfinite(pred).all(axis=1)
+    m = holdout_metrics(pred[seen], y[seen], None, names)
+    res = HoldoutResult(5, 0, m, [], int(seen.sum()), 4, pred, y)
+    worst = res.worst()
+    assert worst["R"]["row"] == 2 and worst["R"]["y"] == 39.0 and worst["R"]["predicted"] == 1.0
+    assert worst["R"]["share"] == pytest.approx(38.0**2 / (0.01 + 0.01 + 38.0**2))
+    # G's worst sample (row 1: errors 0.1, 0.2, 0.1, 0.1) carries 4/7 of its squared error
+    assert worst["G"]["row"] == 1
+    assert worst["G"]["share"] == pytest.approx(0.04 / (0.01 + 0.04 + 0.01 + 0.01))
+    lines = res.lines()
+    named = [ln for ln in lines if "of the held-out squared error is one sample" in ln]
+    assert [ln.split(":")[0] for ln in named] == [n for n in names
+                                                  if worst[n]["share"] >= WORST_SHARE]
+    assert "row 3: data 39, predicted 1)" in named[0]
+    # no predictions kept (a result read back from a fit file): nothing to name
+    assert HoldoutResult(5, 0, m, [], 3, 4).worst() == {}
