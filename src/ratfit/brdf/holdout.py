@@ -86,8 +86,8 @@ class HoldoutResult:
     def worst(self) -> dict[str, dict[str, float]]:
         """Per channel, the held-out sample with the largest squared error: its row,
         value, prediction and share of the channel's summed squared error. A pooled
-        RMSE is often one unseen sample (garnet_red, 5-fold: the file's largest value,
-        at theta_d 1.388 rad outside the other folds' box, 96 % of R's squared error)."""
+        RMSE is often one unseen sample (garnet_red, 5-fold: the file's largest value, at
+        theta_d 1.388 rad outside the other folds' box, over 99 % of R's squared error)."""
         p, y = self.predictions, self.values
         out: dict[str, dict[str, float]] = {}
         if p.size == 0 or p.shape != y.shape:
