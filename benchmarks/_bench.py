@@ -377,6 +377,20 @@ class ModelComparison:
         fig.tight_layout()
         return fig
 
+    def write_to(self, rep: Report, *, title: str, size: str, seconds: str, what: str,
+                 legend: str, plot: str, caption: str) -> None:
+        """The table and its bar plot (file ``plot``, ``caption``) into ``rep``, with the
+        one sentence that counts the channels the rational fit wins: ``what`` says which
+        errors ("The default rational fit", "Held out, the default rational fit"),
+        ``legend`` the table's own columns."""
+        rep.table(title, self.header(size, seconds), self.rows,
+                  note=f"{what} beats the better model on all of {', '.join(self.metrics)} "
+                       f"in {self.wins} of {self.total} channels. Each cell: rational / better "
+                       f"model (model / rational); {legend}")
+        fig = self.figure()
+        if fig is not None:
+            rep.figure(fig, plot, caption)
+
 
 # ---------------------------------------------------------------------------------------
 # records: rows measured earlier, written through the same writer

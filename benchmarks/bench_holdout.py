@@ -84,17 +84,13 @@ def main() -> None:
                                 "fits verified: not compared", secs)
                 continue
             cmp.add(name, ch, coefs, res.metrics[ch], models, secs)
-    rep.table(f"held out ({args.k}-fold, seed {args.seed}): the default rational fit against "
-              f"the better of {', '.join(MODELS)}, per channel",
-              cmp.header("coefs", "s"), cmp.rows,
-              note=f"Held out, the default rational fit beats the better model on all of "
-                   f"{', '.join(METRICS)} in {cmp.wins} of {cmp.total} channels. Each cell: "
-                   "rational / better model (model / rational); coefs: the fold fits' "
-                   "totals over the three channels; s: the material's K fold fits.")
-    fig = cmp.figure()
-    if fig is not None:
-        rep.figure(fig, "bench_holdout", "held out: better analytic model's error / "
-                   "rational fit's, per channel (above 1: the rational fit is better)")
+    cmp.write_to(rep, title=f"held out ({args.k}-fold, seed {args.seed}): the default rational "
+                 f"fit against the better of {', '.join(MODELS)}, per channel",
+                 size="coefs", seconds="s", what="Held out, the default rational fit",
+                 legend="coefs: the fold fits' totals over the three channels; s: the "
+                        "material's K fold fits.",
+                 plot="bench_holdout", caption="held out: better analytic model's error / "
+                 "rational fit's, per channel (above 1: the rational fit is better)")
     rep.write()
 
 

@@ -82,16 +82,12 @@ def main() -> None:
             continue
         for ch in ds.output_names:
             cmp.add(name, ch, rat[ch]["nm"], rat[ch], models, secs)
-    rep.table(f"default rational fit against the better of {', '.join(MODELS)}, per channel",
-              cmp.header("n+m", "fit s"), cmp.rows,
-              note=f"The default rational fit beats the better model on all of "
-                   f"{', '.join(METRICS)} in {cmp.wins} of {cmp.total} channels. Each cell: "
-                   "rational / better model (model / rational); fit s: the material's "
-                   "three channels.")
-    fig = cmp.figure()
-    if fig is not None:
-        rep.figure(fig, "compare_models", "better analytic model's error / rational fit's, "
-                   "per channel (above 1: the rational fit is better)")
+    cmp.write_to(rep, title=f"default rational fit against the better of {', '.join(MODELS)}, "
+                 "per channel", size="n+m", seconds="fit s",
+                 what="The default rational fit",
+                 legend="fit s: the material's three channels.",
+                 plot="compare_models", caption="better analytic model's error / rational "
+                 "fit's, per channel (above 1: the rational fit is better)")
     rep.write()
 
 

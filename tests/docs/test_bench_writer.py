@@ -186,3 +186,19 @@ def test_a_figure_is_saved_beside_the_file_and_linked(bench, tmp_path: Path) -> 
     assert rep.parts[-1] == "![c](generated/x.png)"
     # without --markdown nothing is written
     assert bench.Report(script="x.py", quiet=True).figure(cmp.figure(), "x", "c") is None
+
+
+def test_a_comparison_writes_its_table_its_count_and_its_plot(bench, tmp_path: Path) -> None:
+    pytest.importorskip("matplotlib")
+    cmp = bench.ModelComparison(["rmse", "cos_rmse"])
+    models = {"g": {"R": {"rmse": 0.3, "cos_rmse": 0.2}, "G": {"rmse": 0.1, "cos_rmse": 0.05}}}
+    cmp.add("m", "R", "3+5", {"rmse": 0.1, "cos_rmse": 0.1}, models, 2.0)
+    cmp.add("m", "G", "3+5", {"rmse": 0.05, "cos_rmse": 0.08}, models, 2.0)
+    rep = bench.Report(script="x.py", markdown=tmp_path / "gen" / "x.md", quiet=True)
+    cmp.write_to(rep, title="t", size="n+m", seconds="s", what="Held out, the fit",
+                 legend="s: seconds.", plot="x", caption="a caption")
+    text = rep.text()
+    assert ("Held out, the fit beats the better model on all of rmse, cos_rmse in 1 of 2 "
+            "channels. Each cell: rational / better model (model / rational); s: seconds.") in text
+    assert _md_rows(text)[2][:3] == ["m", "R", "3+5"]
+    assert rep.parts[-1] == "![a caption](x.png)"
