@@ -66,3 +66,16 @@ def one_error_line(result: Result, *patterns: str) -> str:
         assert re.search(pat, line, re.IGNORECASE), f"{pat!r} not in {line!r}"
     assert result.stdout == "", f"stdout on bad input: {result.stdout!r}"
     return line
+
+
+# --------------------------------------------------------------------------- BRDF helpers
+# Shared by the BRDF tests that fit a known material: ``from conftest import above_horizon``.
+def above_horizon(rng, n: int, z_min: float = 0.15):
+    """``n`` unit directions with cos(theta) uniform in [z_min, 1] (away from grazing,
+    where a known material's values are tame) and phi uniform."""
+    import numpy as np
+
+    z = rng.uniform(z_min, 1.0, n)
+    phi = rng.uniform(0.0, 2 * np.pi, n)
+    s = np.sqrt(1 - z * z)
+    return np.stack([s * np.cos(phi), s * np.sin(phi), z], axis=1)

@@ -8,6 +8,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 from click.testing import CliRunner
+from conftest import above_horizon
 
 from ratfit.brdf.analytic_models import Model
 from ratfit.brdf.holdout import REL_FLOOR, cross_validate, fold_indices, holdout_metrics
@@ -48,14 +49,7 @@ def test_holdout_metrics_are_the_stated_formulas():
 def _smooth_material(n: int, seed: int = 0) -> Dataset:
     """A known lambert + wide ggx material at random direction pairs, in the frame."""
     rng = np.random.default_rng(seed)
-
-    def hemi(k: int) -> np.ndarray:
-        z = rng.uniform(0.15, 1.0, k)
-        phi = rng.uniform(0.0, 2 * np.pi, k)
-        s = np.sqrt(1 - z * z)
-        return np.stack([s * np.cos(phi), s * np.sin(phi), z], axis=1)
-
-    L, V = hemi(n), hemi(n)
+    L, V = above_horizon(rng, n), above_horizon(rng, n)
     y = Model("lambert+ggx")(L, V, [0.5, 0.2, 0.6, 0.04])
     x = get_parametrization(FRAME)._from(L, V)
     return Dataset(x=x, y=y[:, None], output_names=("R",),

@@ -6,6 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 from click.testing import CliRunner
+from conftest import above_horizon
 
 from ratfit.brdf.analytic_models import Model
 from ratfit.brdf.fitter import BRDFFitter, brdf_fit_of, fit_brdf
@@ -20,14 +21,7 @@ FRAME = "RUSIN_TH_TD_SYM"
 def _glossy(n: int = 400, seed: int = 1):
     """A known lambert + ggx material whose diffuse part is ~1 % of its peak."""
     rng = np.random.default_rng(seed)
-
-    def hemi(k: int) -> np.ndarray:
-        z = rng.uniform(0.15, 1.0, k)
-        phi = rng.uniform(0.0, 2 * np.pi, k)
-        s = np.sqrt(1 - z * z)
-        return np.stack([s * np.cos(phi), s * np.sin(phi), z], axis=1)
-
-    L, V = hemi(n), hemi(n)
+    L, V = above_horizon(rng, n), above_horizon(rng, n)
     y = Model("lambert+ggx")(L, V, [0.01, 1.0, 0.25, 0.04])
     x = get_parametrization(FRAME)._from(L, V)
     ds = Dataset(x, y[:, None], None, None, ("theta_h", "theta_d", "s"), ("Y",),
