@@ -18,6 +18,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from ratfit.brdf.options import NOISE_FLOOR
 from ratfit.errors import InputError
 from ratfit.io.data import Dataset
 
@@ -27,7 +28,8 @@ __all__ = ["REL_FLOOR", "WORST_SHARE", "HoldoutResult", "cross_validate", "fold_
 Array = NDArray[np.float64]
 #: e (1/sr) of the relative error log((f + e)/(y + e)): values far below it (the noise
 #: of a measured diffuse tail, exact zeros of a colour conversion) do not dominate it.
-REL_FLOOR = 1e-3
+#: The same noise level the relative polish divides by (:data:`~ratfit.brdf.options.NOISE_FLOOR`).
+REL_FLOOR = NOISE_FLOOR
 #: A single held-out sample carrying at least this share of a channel's squared error is
 #: named in :meth:`HoldoutResult.lines`: the RMSE then says more about that sample (often
 #: outside the box the other folds sampled) than about the fit.

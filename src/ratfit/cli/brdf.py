@@ -9,7 +9,7 @@ from typing import Any
 import click
 import numpy as np
 
-from ratfit.brdf.options import BRDF_SOLVER, BRDF_TIME_LIMIT
+from ratfit.brdf.options import BRDF_SOLVER, BRDF_TIME_LIMIT, POLISH_ERRORS, BRDFOptions
 from ratfit.cli.main import (
     EXIT_NO_FIT,
     _print_report,
@@ -83,8 +83,8 @@ def _split_channels(values: tuple[str, ...]) -> list[str]:
               help="Keep the search's minimum-norm fit (default: replace it by the "
                    "least-squares fit of the same size inside the segments when that "
                    "verifies).")
-@click.option("--polish-error", "polish_error", type=click.Choice(["absolute", "relative"]),
-              default="absolute", show_default=True,
+@click.option("--polish-error", "polish_error", type=click.Choice(POLISH_ERRORS),
+              default=BRDFOptions.polish_error, show_default=True,
               help="What the polish minimises: plain squared errors, or errors relative "
                    "to |y| + 1e-3 1/sr (a diffuse part far below the peak counts as much "
                    "as the peak).")
