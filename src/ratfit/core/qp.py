@@ -1136,30 +1136,18 @@ def sk_denominator(space: PolynomialSpace, seg: Segments, channel: int | Sequenc
     guess: tuple[Array, Array, Array] | None = None  # (q at the points, its weights, b)
     for _ in range(steps):
         V = _weighted_orthonormal(Q0[:, :m], v)
-        if V is None:
+        G = None if V is None else _sk_normal_matrix(V, Q0, v, scale, d, sizes)
+        if V is None or G is None:
             break
-        # min sum_c ||U_c a_c - D_c V b|| over ||b|| = 1: eliminate each a_c
-        # (U_c is orthonormal); the normal matrix (m x m) is enough for a guess.
-        G = np.zeros((m, m))
-        for c, nc in enumerate(sizes):
-            U = _weighted_orthonormal(Q0[:, :nc], v / scale[:, c])
-            if U is None:
-                break
-            DV = d[:, c, None] * V
-            W = U.T @ DV
-            G += DV.T @ DV - W.T @ W
-        else:
-            _, vecs = np.linalg.eigh(G)
-            b = vecs[:, 0]
-            qv = (V @ b) / v
-            if not np.all(np.isfinite(qv)) or not np.any(qv):
-                break
-            if np.sum(qv > 0) < np.sum(qv < 0):
-                qv, b = -qv, -b
-            guess = (qv, v, b)
-            v = denominator_weights(qv, pick.size)
-            continue
-        break
+        _, vecs = np.linalg.eigh(G)
+        b = vecs[:, 0]
+        qv = (V @ b) / v
+        if not np.all(np.isfinite(qv)) or not np.any(qv):
+            break
+        if np.sum(qv > 0) < np.sum(qv < 0):
+            qv, b = -qv, -b
+        guess = (qv, v, b)
+        v = denominator_weights(qv, pick.size)
     if guess is None:
         return None
     out = DenominatorGuess(space, t_fit, guess[0], guess[1], m)
@@ -1168,6 +1156,22 @@ def sk_denominator(space: PolynomialSpace, seg: Segments, channel: int | Sequenc
     with np.errstate(all="ignore"):
         q_all = out(t_all)
     return q_all if np.all(np.isfinite(q_all)) and np.any(q_all) else None
+
+
+def _sk_normal_matrix(V: Array, Q0: Array, v: Array, scale: Array, d: Array,
+                      sizes: list[int]) -> Array | None:
+    """The (m x m) matrix of min sum_c ||U_c a_c - D_c V b|| over ||b|| = 1 with each
+    a_c eliminated (U_c orthonormal for the weights v / s_c); None when a U_c cannot be
+    built. Its eigenvector of the smallest eigenvalue is the step's b."""
+    G = np.zeros((V.shape[1], V.shape[1]))
+    for c, nc in enumerate(sizes):
+        U = _weighted_orthonormal(Q0[:, :nc], v / scale[:, c])
+        if U is None:
+            return None
+        DV = d[:, c, None] * V
+        W = U.T @ DV
+        G += DV.T @ DV - W.T @ W
+    return G
 
 
 def _weighted_orthonormal(Q0: Array, w: Array) -> Array | None:
