@@ -20,6 +20,8 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike
 
+from ratfit.core.options import SEGMENT_OPTIONS
+from ratfit.core.segments import Segments
 from ratfit.errors import InputError
 
 __all__ = ["Estimator", "Regressor", "r2_score"]
@@ -122,9 +124,39 @@ class Estimator:
 
 
 class Regressor(Estimator):
-    """Mixin: a regressor to scikit-learn (its tags; ``score`` is R^2 of ``predict``)."""
+    """Mixin: a regressor to scikit-learn (its tags; ``score`` is R^2 of ``predict``),
+    and the segments ``fit(X, y)`` builds from the ``dt`` / ``abs_width`` parameters."""
 
     _estimator_type = "regressor"  # how scikit-learn < 1.6 recognises a regressor
+    # the segment widths fit(X, y) builds segments with (both regressors take them)
+    dt: float | None
+    abs_width: float | None
+
+    def segments_of(self, X: ArrayLike | Segments, y: ArrayLike | None = None) -> Segments:
+        """The segments ``fit(X, y)`` fits: ``X`` itself when it is a
+        :class:`~ratfit.core.segments.Segments`, else built from ``y`` with ``dt``
+        and/or ``abs_width``. Combinations that cannot mean anything are refused."""
+        widths = [f"{k}={getattr(self, k)!r}" for k in SEGMENT_OPTIONS
+                  if getattr(self, k) is not None]
+        if isinstance(X, Segments):
+            if y is not None:
+                raise InputError("fit(segments, y): Segments carry their own bounds; "
+                                 "give y only with an array X")
+            if widths:
+                raise InputError(
+                    f"{', '.join(widths)} builds segments from fit(X, y), but fit() got "
+                    "Segments with bounds of their own: leave dt and abs_width at None")
+            return X
+        if y is None:
+            raise InputError(
+                f"fit() got {type(X).__name__} without y: give fit(X, y) with "
+                f"{type(self).__name__}(dt=...) or abs_width=..., or fit(Segments)")
+        if not widths:
+            raise InputError(
+                f"fit(X, y) builds segments around y from the width options: give "
+                f"{type(self).__name__}(dt=...) (relative) and/or abs_width=... (absolute)")
+        return Segments.from_widths(X, y, dt=self.dt, abs_width=self.abs_width)
+
 
     def predict(self, X: ArrayLike) -> Any:  # pragma: no cover - every subclass has one
         raise NotImplementedError

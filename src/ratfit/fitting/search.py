@@ -281,31 +281,6 @@ class RationalFitter(Regressor):
             SEGMENT_OPTIONS[name].check(params.pop(name))
         return self.options_type.from_params(params)
 
-    def segments_of(self, X: ArrayLike | Segments, y: ArrayLike | None = None) -> Segments:
-        """The segments ``fit(X, y)`` fits: ``X`` itself when it is a
-        :class:`~ratfit.core.segments.Segments`, else built from ``y`` with ``dt``
-        and/or ``abs_width``. Combinations that cannot mean anything are refused."""
-        widths = [f"{k}={getattr(self, k)!r}" for k in SEGMENT_OPTIONS
-                  if getattr(self, k) is not None]
-        if isinstance(X, Segments):
-            if y is not None:
-                raise InputError("fit(segments, y): Segments carry their own bounds; "
-                                 "give y only with an array X")
-            if widths:
-                raise InputError(
-                    f"{', '.join(widths)} builds segments from fit(X, y), but fit() got "
-                    "Segments with bounds of their own: leave dt and abs_width at None")
-            return X
-        if y is None:
-            raise InputError(
-                f"fit() got {type(X).__name__} without y: give fit(X, y) with "
-                f"{type(self).__name__}(dt=...) or abs_width=..., or fit(Segments)")
-        if not widths:
-            raise InputError(
-                f"fit(X, y) builds segments around y from the width options: give "
-                f"{type(self).__name__}(dt=...) (relative) and/or abs_width=... (absolute)")
-        return Segments.from_widths(X, y, dt=self.dt, abs_width=self.abs_width)
-
     def prepare(self, seg: Segments) -> PolynomialSpace:
         """Check the options, alone and against ``seg``, and keep them (``options_``);
         returns the polynomial space of a fit of ``seg``. :meth:`fit` starts here;

@@ -36,7 +36,7 @@ import time
 from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
-from typing import Any, ClassVar, cast
+from typing import Any, ClassVar
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -404,12 +404,6 @@ variable, warm_start
         for name in SEGMENT_OPTIONS:
             SEGMENT_OPTIONS[name].check(params.pop(name))
         return self.options_type.from_params(params)
-
-    def segments_of(self, X: ArrayLike | Segments, y: ArrayLike | None = None) -> Segments:
-        """The segments ``fit(X, y)`` fits, by :meth:`RationalFitter.segments_of
-        <ratfit.fitting.search.RationalFitter.segments_of>`'s rules (the same refusals)."""
-        # it reads only dt, abs_width and the class name: shared, not copied
-        return RationalFitter.segments_of(cast(Any, self), X, y)
 
     def fit(self, X: ArrayLike | Segments, y: ArrayLike | None = None) -> SharedDenominatorFitter:
         """Search the shared-denominator sizes; returns self.
