@@ -40,6 +40,7 @@ from ratfit.core.rational import RationalFunction
 from ratfit.core.segments import Segments
 from ratfit.core.solvers import solve_qp
 from ratfit.core.systems import smallest
+from ratfit.core.work import WorkBudget
 
 __all__ = ["polish_fit"]
 
@@ -67,6 +68,7 @@ def polish_fit(
     method: str = "auto",
     iterations: int = 3,
     repair: bool = False,
+    work: WorkBudget | None = None,
 ) -> RationalFunction | None:
     """The least-squares fit of the same size as ``rf`` whose values stay in the
     inner part (a fraction ``tau`` of each width off both ends) of every segment.
@@ -78,9 +80,11 @@ def polish_fit(
     ``weights`` (N,) weight each point's error (default 1: plain RMSE).
     ``positive_at`` (G, d) are points (original coordinates) where q > 0 and
     p >= 0 are also required. Returns None when the QP fails; the result is
-    a candidate, to be verified by the caller. ``deadline`` (a
-    ``time.perf_counter()`` value) is checked between active-set rounds: past
-    it the polish gives up (None) rather than hold a time-limited run.
+    a candidate, to be verified by the caller. ``work`` counts each QP solve
+    (each active-set round of each cut-off); once it is exhausted the polish gives
+    up (None) before the next solve: a count, so where it stops does not depend on
+    the machine's load. ``deadline`` (a ``time.perf_counter()`` value, only under a
+    user's time limit) is checked between active-set rounds the same way.
     ``method``: "auto" (the whitened QP with ``solver``, the cone program where
     that fails), "qp" or "socp" (the cone program only; needs Clarabel).
     ``iterations``: linearised passes at most (each one searched on the true
@@ -111,6 +115,10 @@ def polish_fit(
     if importlib.util.find_spec("clarabel") is None:
         methods = tuple(x for x in methods if x != "socp") or ("qp",)
     err = _error(P, Q, y, w, n)
+
+    def stop() -> bool:
+        return _past(deadline) or (work is not None and work.exhausted)
+
     best = err(c)
     improved = False
     # Sanathanan-Koerner: each pass linearises the error around the current q; the
@@ -118,7 +126,7 @@ def polish_fit(
     # the fit worse (its QP's optimum can be: cayman R (1, 8), RMSE 0.068 -> 0.25).
     for _ in range(1 if repair else iterations):
         step = _polish_pass(P, Q, lo, hi, y, w, c, grid, p_rows, tau, solver, methods,
-                            max_rounds, start_rows, deadline, repair)
+                            max_rounds, start_rows, stop, work, repair)
         if step is None:
             break
         if repair:
@@ -131,7 +139,7 @@ def polish_fit(
         c, best, improved = c_new, e_new, True
         # another pass only after a real gain (acryl_blue: the second pass gains
         # 0.2 % of the squared error where the first gained 90 %)
-        if gain < 0.02 or _past(deadline):
+        if gain < 0.02 or stop():
             break
     if not improved:
         return None
@@ -188,7 +196,8 @@ def _line_search(P: Array, Q: Array, y: Array, w: Array, c0: Array,
 def _polish_pass(P: Array, Q: Array, lo: Array, hi: Array, y: Array, w: Array, c: Array,
                  grid: Array, p_rows: Array, tau: float, solver: str,
                  methods: tuple[str, ...], max_rounds: int, start_rows: int,
-                 deadline: float | None, repair: bool = False) -> Array | None:
+                 stop: Callable[[], bool], work: WorkBudget | None,
+                 repair: bool = False) -> Array | None:
     """One linearised polish around coefficients ``c`` (q > 0 of mean 1 on the data):
     the QP's coefficients, or None when every cut-off fails."""
     n = P.shape[1]
@@ -230,8 +239,8 @@ def _polish_pass(P: Array, Q: Array, lo: Array, hi: Array, y: Array, w: Array, c
         for cut in cuts:
             qp = _whitened(Rinv, solver) if how == "qp" else _cone(R)
             out = _solve_band(P, Q, lo, hi, qp, cut, grid, h_grid, q_floor, c,
-                              max_rounds, start_rows, deadline)
-            if out is not None or _past(deadline):
+                              max_rounds, start_rows, stop, work)
+            if out is not None or stop():
                 return out
     return None
 
@@ -420,7 +429,8 @@ class _BandRows:
 
 def _solve_band(P: Array, Q: Array, lo: Array, hi: Array, qp: QPStep, tau: float,
                 grid: Array, h_grid: Array, q_floor: float, c_start: Array,
-                max_rounds: int, start_rows: int, deadline: float | None) -> Array | None:
+                max_rounds: int, start_rows: int, stop: Callable[[], bool],
+                work: WorkBudget | None) -> Array | None:
     """The active-set QP of :func:`polish_fit` for one cut-off ``tau``: its
     coefficients (a, b), or None when infeasible, unsolved or out of time."""
     n, m = P.shape[1], Q.shape[1]
@@ -442,11 +452,13 @@ def _solve_band(P: Array, Q: Array, lo: Array, hi: Array, qp: QPStep, tau: float
     lo_half, hi_half = lo + 0.5 * tau * width, hi - 0.5 * tau * width
     tol = -1e-9 * width
     for _ in range(max_rounds):
-        if _past(deadline):
+        if stop():
             return None
         idx = np.flatnonzero(active)
         G, h = band.rows(idx)
         c = qp(G, h + lift[idx], mean_q)
+        if work is not None:
+            work.spend()
         if c is None:
             return None
         pa, qb = P @ c[:n], Q @ c[n:]

@@ -91,6 +91,7 @@ from ratfit.core.segments import Segments
 from ratfit.core.systems import RowSystem, denominator_cuts, domain_grid
 from ratfit.core.threads import one_blas_thread
 from ratfit.core.verify import Verification, verify
+from ratfit.core.work import WorkBudget
 from ratfit.errors import InputError
 
 __all__ = [
@@ -629,7 +630,9 @@ class SearchParts:
     (:func:`ratfit.core.qp.solve_pole_free`) on the domain grid, or on
     ``pole_grid`` (window points) when given. ``repair``, when given, gets a
     candidate that meets every segment but fails the verifier otherwise and may
-    return another fit of the same (n, m) with its (passing) verification.
+    return another fit of the same (n, m) with its (passing) verification; its
+    QP solves count against the :class:`~ratfit.core.work.WorkBudget` it is given
+    (what is left of the search's ``work_limit``).
     ``constraint_points``, when given, counts the points the verifier has added
     to the split systems' constraints (constraint generation); a split whose
     candidate was rejected while that count grew is solved again with them, up
@@ -642,7 +645,7 @@ class SearchParts:
     verifier: Callable[[RationalFunction, Segments, int], Verification]
     pole_free: bool = True
     pole_grid: Array | None = None
-    repair: Callable[[RationalFunction, Segments, int],
+    repair: Callable[[RationalFunction, Segments, int, WorkBudget],
                      tuple[RationalFunction, Verification] | None] | None = None
     constraint_points: Callable[[], int] | None = None
     regenerate: int = 2
@@ -810,7 +813,11 @@ class SearchEngine:
                 or ver.n_violations or not np.isfinite(ver.linf)
                 or (self.deadline is not None and time.perf_counter() > self.deadline)):
             return out
-        fixed = self.parts.repair(rf, self.seg, self.channel)
+        # the repair's QP solves count toward the search's budget, like its own
+        work = WorkBudget(None if self.budget is None
+                          else max(self.budget - self.solves() - att.qp_solves, 0))
+        fixed = self.parts.repair(rf, self.seg, self.channel, work)
+        att.qp_solves += work.spent
         return out if fixed is None else (att, *fixed)
 
     def _seed(self, n: int, m: int) -> Candidate:
