@@ -27,7 +27,6 @@ from numpy.typing import ArrayLike, NDArray
 
 from ratfit.brdf.options import (
     BRDF_SOLVER,
-    BRDF_TIME_LIMIT,
     NOISE_FLOOR,
     UNKNOWN_PARAMETRIZATION,
     BRDFOptions,
@@ -38,6 +37,7 @@ from ratfit.brdf.parametrizations import (
     get_parametrization,
 )
 from ratfit.core.bases import PolynomialSpace
+from ratfit.core.options import DEFAULT_TIME_LIMIT
 from ratfit.core.qp import ArnoldiSystem
 from ratfit.core.rational import RationalFunction
 from ratfit.core.results import FitResult
@@ -46,6 +46,7 @@ from ratfit.core.systems import AppendedRows, LazyRows, RowSystem, spread_indice
 from ratfit.core.threads import one_blas_thread
 from ratfit.core.validation import check_width
 from ratfit.core.verify import Verification, verify
+from ratfit.core.work import WorkBudget
 from ratfit.errors import FileFormatError, InputError
 from ratfit.fitting.search import RationalFitter, SearchParts, SystemFactory
 from ratfit.io.data import Dataset
@@ -114,6 +115,14 @@ _HAS_HALF_VECTOR_ALTERNATIVE = ("ISOTROPIC_TV_TL_DPHI", "ISOTROPIC_TL_TV_PROJ_DP
 REPAIR_ROUNDS = 10
 ROUND_POINTS = 500
 SEARCH_POINTS = 200
+# Every part of a channel's fit is bounded by QP solves, not seconds, so that the same
+# command gives the same fit on any load and with any --jobs: the search (its repairs
+# included) by ``work_limit``; the polish after it and the final proof's repair by
+# POLISH_WORK_SHARE of it; the search again with the full proof on every candidate
+# (when the chosen fit was refuted) by RESEARCH_WORK_SHARE of it, like the second
+# search of fitting.search (a quarter).
+POLISH_WORK_SHARE = 0.25
+RESEARCH_WORK_SHARE = 0.25
 
 
 def cos_theta_l(coords: ArrayLike, param: str) -> Array:
@@ -623,7 +632,7 @@ class BRDFFitter(RationalFitter):
                  positive_q: bool = False, physical: bool = True, polish: bool = True,
                  polish_error: str = "absolute",
                  used_coords: tuple[int, ...] | None = None,
-                 solver: str = BRDF_SOLVER, time_limit: float | None = BRDF_TIME_LIMIT,
+                 solver: str = BRDF_SOLVER, time_limit: float | None = DEFAULT_TIME_LIMIT,
                  **params: Any) -> None:
         super().__init__(solver=solver, time_limit=time_limit, **params)
         self.parametrization = parametrization
@@ -638,6 +647,7 @@ class BRDFFitter(RationalFitter):
         if not self._full_search:
             self._shared_extra: list[Array] = []
         self._checks: dict[int, Any] = {}
+        self._polish_budgets: dict[int, WorkBudget] = {}
         super()._fit_segments(segments)
         searched = list(self.results_)
         prove = self.physical and find_parametrization(self.parametrization) is not None
@@ -672,15 +682,29 @@ class BRDFFitter(RationalFitter):
 
     def _search_with_full_proof(self, res: FitResult, seg: Segments, j: int) -> FitResult:
         """Channel ``j`` searched again with the full proof on every candidate, when the
-        fit the short proofs let through was refuted at the end (slower, and rare)."""
-        again = type(self)(**self.get_params())
+        fit the short proofs let through was refuted at the end (slower, and rare).
+
+        The search again gets :data:`RESEARCH_WORK_SHARE` of the work limit (and of a
+        time limit, when one is given), all of its parts counted as in any search:
+        each candidate's full proof may reject it, and each rejection adds validity
+        rows to every later split (cayman's R without a bound: 817 s, 97 % of the fit).
+        """
+        params = self.get_params()
+        for key, share in (("work_limit", RESEARCH_WORK_SHARE),
+                           ("time_limit", RESEARCH_WORK_SHARE)):
+            if params.get(key) is not None:
+                params[key] = max(1, int(params[key] * share)) if key == "work_limit" \
+                    else float(params[key]) * share
+        again = type(self)(**params)
         again._full_search = True
         again._final_proof = True
         again._shared_extra = list(self._extra)
         again._fit_segments(seg.channel(j))
         out = again.results_[0]
         if not out.success:
-            return res
+            return replace(res, time_limited=res.time_limited or out.time_limited,
+                           message=f"{res.message}; searched again with the full validity "
+                                   f"proof on every candidate: {out.message}")
         self.__dict__.setdefault("_proofs", {}).update(again.__dict__.get("_proofs", {}))
         self._checks.update(again._checks)
         return replace(out, message=f"{out.message}; searched again with the full validity "
@@ -725,7 +749,8 @@ class BRDFFitter(RationalFitter):
                 # the repair of the search, now with the full proof as the check
                 self._extra.append(_spread(proof.bad_points, SEARCH_POINTS))
                 out = self._polish_rounds(rf, seg, j, None, rounds=REPAIR_ROUNDS,
-                                          method="qp", repair=True)
+                                          method="qp", repair=True,
+                                          work=self._polish_work(j))
                 if out is None:
                     break
                 rf = out[0]
@@ -770,9 +795,11 @@ class BRDFFitter(RationalFitter):
 
     def _polish_rounds(self, rf: RationalFunction, seg: Segments, j: int,
                        deadline: float | None, rounds: int = 4, method: str = "auto",
-                       repair: bool = False) -> tuple[RationalFunction, Verification] | None:
+                       repair: bool = False, work: WorkBudget | None = None
+                       ) -> tuple[RationalFunction, Verification] | None:
         """The least-squares polish of ``rf`` that passes :meth:`_verify`, or None
-        (also once ``deadline``, a ``time.perf_counter()`` value, has passed).
+        (also once ``work``, the QP solves it may spend, is exhausted, or once
+        ``deadline``, a ``time.perf_counter()`` value, has passed).
 
         Where the dense validity check still finds q <= 0 or r < 0, those points
         join the polish's constraints and it runs again (constraint generation).
@@ -785,12 +812,12 @@ class BRDFFitter(RationalFitter):
         if pts is not None and self._extra:
             pts = np.concatenate([pts, *self._extra])
         for _ in range(rounds):
-            if _past(deadline):
+            if _past(deadline) or (work is not None and work.exhausted):
                 return None
             cand = polish_fit(rf, seg, j, weights=self._polish_weights(seg, j),
                               positive_at=pts, solver=self.solver,
                               deadline=deadline, method=method,
-                              repair=repair)
+                              repair=repair, work=work)
             if cand is None:
                 return None
             ver = self._verify(cand, seg, j)
@@ -810,21 +837,35 @@ class BRDFFitter(RationalFitter):
         return 1.0 / (np.abs(seg.center[:, j]) + NOISE_FLOOR)
 
     def _polish_deadline(self) -> float | None:
-        """A polish (or a repair) may take a quarter of the per-channel time limit:
-        it improves a fit already found, so it must not hold a time-limited run."""
+        """Under a user's ``time_limit``, a polish (or a repair) may take a quarter of
+        it: it improves a fit already found, so it must not hold a time-limited run.
+        None (no clock) by default: :meth:`_polish_work` bounds it."""
         if self.time_limit is None:
             return None
         return time.perf_counter() + 0.25 * float(self.time_limit)
 
-    def _repair(self, rf: RationalFunction, seg: Segments,
-                j: int) -> tuple[RationalFunction, Verification] | None:
+    def _polish_work(self, j: int) -> WorkBudget:
+        """Channel ``j``'s budget for the polish after the search and the final
+        proof's repair: :data:`POLISH_WORK_SHARE` of ``work_limit`` QP solves, shared
+        by both (no limit without a work limit)."""
+        budgets = self.__dict__.setdefault("_polish_budgets", {})
+        if j not in budgets:
+            limit = self.work_limit
+            budgets[j] = WorkBudget(None if limit is None
+                                    else max(1, int(limit * POLISH_WORK_SHARE)))
+        return budgets[j]
+
+    def _repair(self, rf: RationalFunction, seg: Segments, j: int,
+                work: WorkBudget | None = None
+                ) -> tuple[RationalFunction, Verification] | None:
         """A candidate that meets every segment but goes negative or through a pole
         between the samples: its least-squares polish under the validity rows is
-        often valid at the same size (the minimum-norm point is the wildest one)."""
+        often valid at the same size (the minimum-norm point is the wildest one).
+        ``work``: the search's QP solves left, which the repair's solves count against."""
         # the QP only: repairs run many times per search, the cone program is slower
         # (garnet_red: 103 s of Clarabel in 12 repairs, 30 s for the whole fit without)
         return self._polish_rounds(rf, seg, j, self._polish_deadline(), rounds=REPAIR_ROUNDS,
-                                   method="qp", repair=True)
+                                   method="qp", repair=True, work=work)
 
     def _polished(self, res: FitResult, seg: Segments, j: int) -> FitResult:
         """``res`` with its rational replaced by the least-squares polish when that
@@ -843,8 +884,13 @@ class BRDFFitter(RationalFitter):
 
         before = score(rf)
         deadline = self._polish_deadline()
-        out = self._polish_rounds(rf, seg, j, deadline)
+        work = self._polish_work(j)
+        out = self._polish_rounds(rf, seg, j, deadline, work=work)
         if out is None:
+            if work.exhausted:
+                return replace(res, message=f"{res.message}; least-squares polish stopped "
+                                            f"at its work limit of {work.limit} QP solves "
+                                            "(fit unpolished)")
             if _past(deadline):
                 return replace(res, message=f"{res.message}; least-squares polish "
                                             "stopped at the time limit (fit unpolished)")
@@ -853,9 +899,11 @@ class BRDFFitter(RationalFitter):
         after = score(cand)
         if not after < before:
             return res
+        cut = (f" (its work limit of {work.limit} QP solves reached)" if work.exhausted
+               else "")
         return replace(res, rational=cand, verification=ver,
                        message=f"{res.message}; least-squares polish: {what} "
-                               f"{before:.4g} -> {after:.4g} at the same size")
+                               f"{before:.4g} -> {after:.4g} at the same size{cut}")
 
     def search_parts(self, space: PolynomialSpace, seg: Segments) -> SearchParts:
         parts = super().search_parts(space, seg)
