@@ -76,7 +76,7 @@ from typing import Any
 
 from ratfit._atomic import atomic_dir, atomic_open, atomic_path
 from ratfit._progress import StepProgress
-from ratfit.brdf.options import BRDF_SOLVER, BRDF_TIME_LIMIT
+from ratfit.brdf.options import BRDF_SOLVER
 from ratfit.core.options import FIT_OPTIONS, SEGMENT_OPTIONS
 from ratfit.core.validation import check_bool, check_choice, check_int, check_width
 from ratfit.errors import InputError, RatfitError
@@ -145,8 +145,7 @@ DEFAULTS: dict[str, Any] = {
     "format": None, "dim": None, "monomial": True, "kind": "auto", **BRDF_SETTINGS,
 }
 # A BRDF file's settings start from the BRDF fitter's solver, as `ratfit brdf fit`.
-BRDF_DEFAULTS: dict[str, Any] = {**DEFAULTS, "solver": BRDF_SOLVER,
-                                  "time_limit": BRDF_TIME_LIMIT}
+BRDF_DEFAULTS: dict[str, Any] = {**DEFAULTS, "solver": BRDF_SOLVER}
 _NOT_HASHED = ("jobs", "warm_start")
 # Settings added after manifests were in use: left out of the settings id while they
 # hold their default, so results of earlier runs keep their ids (and are resumed).

@@ -7,22 +7,23 @@ from dataclasses import dataclass
 from typing import Any, ClassVar
 
 from ratfit.brdf.parametrizations import PARAMETRIZATIONS, find_parametrization
-from ratfit.core.options import FIT_OPTIONS, FitOptions, Option, check_options_class, extend_spec
+from ratfit.core.options import (
+    DEFAULT_TIME_LIMIT,
+    FIT_OPTIONS,
+    FitOptions,
+    Option,
+    check_options_class,
+    extend_spec,
+)
 from ratfit.core.solvers import first_available
 from ratfit.errors import InputError
 
-__all__ = ["BRDF_OPTIONS", "BRDF_SOLVER", "BRDF_TIME_LIMIT", "NOISE_FLOOR", "POLISH_ERRORS",
+__all__ = ["BRDF_OPTIONS", "BRDF_SOLVER", "NOISE_FLOOR", "POLISH_ERRORS",
            "BRDFOptions", "UNKNOWN_PARAMETRIZATION"]
 
 # DAQP first: quadprog was seen looping forever inside one call on a BRDF QP with
 # validity rows (1217 x 37, garnet_red) that DAQP solves in 6 ms.
 BRDF_SOLVER = first_available(("daqp", "quadprog"))
-#: Wall-clock seconds per channel a BRDF fit takes by default (``fit`` has none: its
-#: default is the work budget alone). Without it the validity proof's polish and
-#: full-proof re-search are unbounded in time: cayman's default fit ran past 10 min
-#: (57 s before the work budget replaced the clock; 169 s with this limit, measured
-#: 2026-11-25 under load). A work-counted bound for them is open (issue 26/28).
-BRDF_TIME_LIMIT = 120.0
 #: 1/sr: the absolute level under which a measured BRDF value is noise (the e of the
 #: relative error log((f + e)/(y + e)) that held-out errors and the relative polish use).
 #: Cornell's diffuse values of glossy paints lie at 3e-3..5e-2 1/sr, 1e-4 of their peak.
@@ -78,7 +79,7 @@ BRDF_OPTIONS = extend_spec(
     Option("used_coords", "indices", None,
            "Coordinates of the parametrization the data holds (None: all).",
            validator=_check_coords, cli=False),
-    defaults={"solver": BRDF_SOLVER, "time_limit": BRDF_TIME_LIMIT},
+    defaults={"solver": BRDF_SOLVER},
 )
 
 
@@ -89,7 +90,7 @@ class BRDFOptions(FitOptions):
     SPEC: ClassVar = BRDF_OPTIONS
 
     solver: str = BRDF_SOLVER
-    time_limit: float | None = BRDF_TIME_LIMIT
+    time_limit: float | None = DEFAULT_TIME_LIMIT
     parametrization: str = UNKNOWN_PARAMETRIZATION
     positive_q: bool = False
     physical: bool = True

@@ -9,7 +9,7 @@ from typing import Any
 import click
 import numpy as np
 
-from ratfit.brdf.options import BRDF_SOLVER, BRDF_TIME_LIMIT, POLISH_ERRORS, BRDFOptions
+from ratfit.brdf.options import BRDF_SOLVER, POLISH_ERRORS, BRDFOptions
 from ratfit.cli.main import (
     EXIT_NO_FIT,
     _print_report,
@@ -72,13 +72,16 @@ def _split_channels(values: tuple[str, ...]) -> list[str]:
                    "the same folds every run), and report the errors at the samples each "
                    "fit never saw (RMSE, cos-weighted RMSE, RMS of log((f+1e-3)/(y+1e-3))); "
                    "recorded in the fit file.")
-@fit_options(exclude=("domain",), defaults={"solver": BRDF_SOLVER,
-                                             "time_limit": BRDF_TIME_LIMIT},
+@fit_options(exclude=("domain",), defaults={"solver": BRDF_SOLVER},
              helps={"time_limit": "Wall-clock seconds per channel before the search, the "
-                                  "polish and the validity proof stop with what they have. "
-                                  "BRDF fits keep this clock by default (the proof's polish "
-                                  "and re-search are not yet bounded by the work budget), so "
-                                  "a fit that reaches it can depend on the machine's load."})
+                                  "polish and the validity proof stop with what they have "
+                                  "(default: none). With a clock the answer can depend on "
+                                  "the machine's load.",
+                    "work_limit": "QP solves per channel before the search stops with what "
+                                  "it has (its repairs included); the polish and the final "
+                                  "proof's repair get a quarter of it more, a search again "
+                                  "with the full validity proof a quarter: the same answer "
+                                  "on any load and any --jobs."})
 @click.option("--no-polish", "no_polish", is_flag=True,
               help="Keep the search's minimum-norm fit (default: replace it by the "
                    "least-squares fit of the same size inside the segments when that "
