@@ -95,7 +95,7 @@ HALF_VECTOR_FLOOR_REL = 0.001
 SMALL_FIT_TOTAL = 12
 FLOOR_REFINEMENTS = 2
 # When no split of a default fit has any candidate (every QP infeasible: found out in
-# seconds, nothing was cut short by the time limit), the default relative width is
+# seconds, nothing was cut short by the work or time limit), the default relative width is
 # widened by WIDEN_FACTOR, at most up to MAX_DEFAULT_DT, and that parametrization
 # fitted again. The dense retro files: gray-tape-dense has no candidate up to 100
 # coefficients at 0.28 and 0.42 in the half-vector frame (a 100x retro peak within a
@@ -369,7 +369,7 @@ def fit_brdf_auto(datasets: list[Dataset], **kw: Any):
 
     With default widths (no width, no size and no ``max_total`` given) and no
     verified fit, each parametrization whose search had no candidate at all (every
-    split infeasible, nothing cut short by the time limit: known in seconds) is fitted
+    split infeasible, nothing cut short by the work or time limit: known in seconds) is fitted
     again at :func:`widened_dt` widths until a try has candidates (:func:`_widen`);
     of the verified ones the same rule keeps the best, and
     ``meta["segments"]["widened_from"]`` lists the widths that had none.
@@ -455,7 +455,7 @@ def _tried(fitter: RationalFitter, meta: dict[str, Any], band: tuple[float, floa
 
 def _no_candidate(fitter: RationalFitter) -> bool:
     """Every channel without a verified fit had no candidate at all: each split the
-    search tested was infeasible (status 1) and the time limit cut nothing short.
+    search tested was infeasible (status 1) and the work or time limit cut nothing short.
     Widening the segments is then the only way to a fit, and a cheap one to try."""
     failed = [r for r in fitter.results_ if not r.success]
     return bool(failed) and all(r.status == 1 and not r.time_limited for r in failed)
@@ -587,9 +587,11 @@ class BRDFFitter(RationalFitter):
         (:func:`ratfit.core.polish.polish_fit`), when that fit verifies
         (segments and the physical check) and has the smaller RMSE. Same size,
         same guarantees, errors several times smaller than the search's
-        minimum-norm fit, which runs along the segments' edges. With a
-        ``time_limit``, each channel's polish gets a quarter of it and keeps the
-        search's fit (saying so in the message) when that runs out.
+        minimum-norm fit, which runs along the segments' edges. Each channel's
+        polish (with the final proof's repair) may spend a quarter of ``work_limit``
+        in QP solves (:data:`POLISH_WORK_SHARE`), and a quarter of a ``time_limit``
+        when one is given; when that runs out it keeps the search's fit, saying so
+        in the message.
     polish_error : {"absolute", "relative"}, default "absolute"
         What the polish minimises: the plain squared errors, or the squared errors
         relative to |y| + 1e-3 1/sr (:data:`~ratfit.brdf.options.NOISE_FLOOR`), so that

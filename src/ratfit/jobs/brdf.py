@@ -228,11 +228,14 @@ class BRDFFitReport:
                          f"(refit {'it' if len(failed) == 1 else 'them'} alone with "
                          + " ".join(f"--channel {n}" for n in failed) + ")")
         if widths["default"]:
-            limited = any(r.time_limited for r in self.results)
+            limited = [r.message for r in self.results if r.time_limited]
+            out_of = ("or a larger --work-limit (the search ran out of QP solves) "
+                      if any("work limit of" in m for m in limited) else
+                      "or a longer --time-limit (the search ran out of time) "
+                      if limited else "")
             parts.append(f"no verified fit at the default segments (y +- {widths['dt']:.3g} y); "
                          f"wider ones (--dt {min(2 * float(widths['dt']), 1.0):.2g}) "
-                         + ("or a longer --time-limit (the search ran out of time) "
-                            if limited else "") + "may give one")
+                         + out_of + "may give one")
         return "hint: " + "; ".join(parts) if parts else None
 
 
