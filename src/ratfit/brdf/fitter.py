@@ -37,7 +37,7 @@ from ratfit.brdf.parametrizations import (
     get_parametrization,
 )
 from ratfit.core.bases import PolynomialSpace
-from ratfit.core.options import DEFAULT_TIME_LIMIT
+from ratfit.core.options import DEFAULT_MAX_TOTAL, DEFAULT_TIME_LIMIT
 from ratfit.core.qp import ArnoldiSystem
 from ratfit.core.rational import RationalFunction
 from ratfit.core.results import FitResult
@@ -123,6 +123,11 @@ SEARCH_POINTS = 200
 # search of fitting.search (a quarter).
 POLISH_WORK_SHARE = 0.25
 RESEARCH_WORK_SHARE = 0.25
+# The search again goes up to this many times the refuted fit's total (not to 100): it
+# replaces a fit the short proofs accepted. Solves grow with n + m and with the validity
+# rows every rejection adds: cayman's R searched again up to 100 galloped to (50, 50),
+# where one split's active set reached 32 000 of 147 000 rows (minutes of DAQP a solve).
+RESEARCH_TOTAL_FACTOR = 2
 
 
 def cos_theta_l(coords: ArrayLike, param: str) -> Array:
@@ -687,11 +692,16 @@ class BRDFFitter(RationalFitter):
         fit the short proofs let through was refuted at the end (slower, and rare).
 
         The search again gets :data:`RESEARCH_WORK_SHARE` of the work limit (and of a
-        time limit, when one is given), all of its parts counted as in any search:
+        time limit, when one is given) and goes up to :data:`RESEARCH_TOTAL_FACTOR`
+        times the refuted fit's total, all of its parts counted as in any search:
         each candidate's full proof may reject it, and each rejection adds validity
         rows to every later split (cayman's R without a bound: 817 s, 97 % of the fit).
         """
         params = self.get_params()
+        if params["n"] is None and params["total"] is None:
+            hi = int(params["max_total"] or DEFAULT_MAX_TOTAL)
+            params["max_total"] = max(min(hi, RESEARCH_TOTAL_FACTOR * (res.n + res.m)),
+                                      int(params["min_total"]))
         for key, share in (("work_limit", RESEARCH_WORK_SHARE),
                            ("time_limit", RESEARCH_WORK_SHARE)):
             if params.get(key) is not None:
