@@ -92,22 +92,23 @@ def test_polish_stops_at_its_work_limit(monkeypatch) -> None:
 def test_a_search_again_with_the_full_proof_has_a_quarter_of_the_budget(monkeypatch) -> None:
     """When the chosen fit fails the final proof, the channel is searched again with
     that proof on every candidate, within a quarter of the work limit (and of a user's
-    time limit); a search again that runs out says so in the channel's message."""
+    time limit) and up to twice the refuted fit's total; a search again that runs out
+    says so in the channel's message."""
     first = _fit(jobs=1)
     # the chosen fit as the final proof refuted it
     refuted = replace(first.result_, success=False, status=2,
                       message=f"{first.result_.message}; rejected: validity refuted")
-    seen: list[tuple[int | None, float | None]] = []
+    seen: list[tuple[int | None, float | None, int | None]] = []
     real = BRDFFitter._fit_segments
 
     def spy(self, seg):
         if self._full_search:
-            seen.append((self.work_limit, self.time_limit))
+            seen.append((self.work_limit, self.time_limit, self.max_total))
         return real(self, seg)
 
     monkeypatch.setattr(BRDFFitter, "_fit_segments", spy)
-    for limits in ({"work_limit": 4}, {"work_limit": 40, "time_limit": 8.0}):
-        fitter = BRDFFitter(parametrization=P, max_total=30, **limits)
+    for limits in ({"work_limit": 4}, {"work_limit": 40, "time_limit": 8.0, "max_total": 30}):
+        fitter = BRDFFitter(parametrization=P, **limits)
         fitter._shared_extra, fitter._checks = [], {}
         out = fitter._search_with_full_proof(refuted, first.segments_, 0)
         if len(seen) == 1:
@@ -116,7 +117,8 @@ def test_a_search_again_with_the_full_proof_has_a_quarter_of_the_budget(monkeypa
             assert out.message.startswith(refuted.message)
             assert ("searched again with the full validity proof on every candidate: "
                     in out.message and "work limit of 1 QP solves reached" in out.message)
-    assert seen == [(1, None), (10, 2.0)]
+    total = first.result_.n + first.result_.m
+    assert seen == [(1, None, 2 * total), (10, 2.0, min(30, 2 * total))]
 
 
 @pytest.mark.parametrize("limit", [None, 3.0])
