@@ -12,8 +12,11 @@ import pytest
 from conftest import run_cli
 
 from ratfit.brdf.fitter import (
+    DEFAULT_FLOOR_REL,
     HALF_VECTOR,
+    HALF_VECTOR_FLOOR_REL,
     candidate_parametrizations,
+    default_floor_rel,
     fit_brdf_auto,
     resolve_widths,
 )
@@ -47,15 +50,20 @@ def test_candidates_only_for_isotropic_angle_sets() -> None:
     assert candidate_parametrizations(HALF_VECTOR) == (HALF_VECTOR,)
     assert candidate_parametrizations("STARK_2D") == ("STARK_2D",)
     assert candidate_parametrizations("UNKNOWN") == ("UNKNOWN",)
+    assert default_floor_rel(HALF_VECTOR) == HALF_VECTOR_FLOOR_REL < DEFAULT_FLOOR_REL
+    assert default_floor_rel(ISO) == default_floor_rel("STARK_2D") == DEFAULT_FLOOR_REL
 
-def test_default_floor_is_the_noise_level_in_every_frame() -> None:
-    """The default floor is absolute (1e-3 1/sr), the same in every frame: not a
-    fraction of the peak, which lay above glossy paints' diffuse values."""
+
+def test_default_floor_of_a_table_is_the_noise_level() -> None:
+    """A MERL table's default floor is absolute (1e-3 1/sr) in every frame; scattered
+    data keeps a fraction of each channel's peak."""
     for param in (ISO, HALF_VECTOR):
         ds = _lobe(param)
-        dt, absw, floor_rel, defaulted = resolve_widths(ds, None, None, None)
-        assert (absw, floor_rel, defaulted) == (NOISE_FLOOR, None, True)
-        assert dt == 0.05
+        assert resolve_widths(ds, None, None, None) == (0.05, None, default_floor_rel(param),
+                                                        True)
+        table = Dataset(ds.x, ds.y, None, None, ds.input_names, ds.output_names,
+                        {"param_in": param, "format": "merl"})
+        assert resolve_widths(table, None, None, None) == (0.05, NOISE_FLOOR, None, True)
     # a user's widths are kept as given
     assert resolve_widths(_lobe(ISO), 0.1, None, 0.002) == (0.1, None, 0.002, False)
 
@@ -83,12 +91,17 @@ def test_auto_keeps_the_verified_fit_and_caps_the_second_search() -> None:
     assert meta2["parametrization"] == HALF_VECTOR
     assert fitter2.result_.n + fitter2.result_.m == a["coefficients"]
     # after a verified fit in a frame that is not symmetric, the next search stops at
-    # its size (the same absolute default floor in both frames)
+    # its size
     pd = _lobe("RUSIN_TH_TD_PD")
-    _, _, meta3 = fit_brdf_auto([pd, iso], max_total=40)
+    _, _, meta3 = fit_brdf_auto([pd, iso], dt=0.05, floor_rel=0.002, max_total=40)
     a, b = meta3["candidates"]
-    assert a["verified"] and a["floor"] == b["floor"] == NOISE_FLOOR
+    assert a["verified"] and a["floor"] == b["floor"] == 0.002
     assert b["searched_up_to"] == a["coefficients"] and not b["verified"]
+    # default widths: the angles' floor is wider, so after a verified fit they are skipped
+    _, _, meta4 = fit_brdf_auto([pd, iso], max_total=40)
+    a, b = meta4["candidates"]
+    assert a["verified"] and a["floor"] == HALF_VECTOR_FLOOR_REL
+    assert b["skipped"] and b["verified"] is None
 
 
 @pytest.mark.slow
@@ -110,7 +123,7 @@ def test_cli_default_fit_of_cayman_is_in_the_half_vector_frame(shared_data: Path
     doc = json.loads(r.stdout)
     half, iso, *narrowed = doc["parametrization_candidates"]
     assert half["parametrization"] == HALF_VECTOR and half["verified"]
-    assert half["coefficients"] <= 30 and half["floor"] == NOISE_FLOOR
+    assert half["coefficients"] <= 30 and half["floor"] == HALF_VECTOR_FLOOR_REL
     assert iso["parametrization"] == ISO and iso["skipped"]
     assert doc["parametrization"] == HALF_VECTOR
     assert 1 <= len(narrowed) <= 2
@@ -121,7 +134,7 @@ def test_cli_default_fit_of_cayman_is_in_the_half_vector_frame(shared_data: Path
     assert sum(doc["n"]) + sum(doc["m"]) == kept[-1]["coefficients"]
     saved = json.loads(out.read_text())
     assert saved["brdf"]["parametrization"] == HALF_VECTOR
-    assert saved["brdf"]["segments"]["abs_width"] == kept[-1]["floor"]
+    assert saved["brdf"]["segments"]["floor_rel"] == kept[-1]["floor"]
     # the saved fit, evaluated at the measured directions, against the model
     ev = run_cli("brdf", "compare", data, out, "--model", "lambert+ggx", "--json")
     assert ev.exit_code == 0, ev.output

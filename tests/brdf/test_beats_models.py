@@ -12,12 +12,12 @@ from ratfit.brdf.analytic_models import Model, fit_model
 from ratfit.brdf.fitter import (
     DEFAULT_DT,
     HALF_VECTOR,
+    HALF_VECTOR_FLOOR_REL,
     brdf_metrics,
     candidate_parametrizations,
     fit_brdf_auto,
 )
 from ratfit.brdf.io import brdf_dataset
-from ratfit.brdf.options import NOISE_FLOOR
 from ratfit.brdf.parametrizations import get_parametrization
 
 # The polish regressions below were found in the Rusinkiewicz angles (the default
@@ -48,7 +48,7 @@ def test_default_fit_of_acryl_blue_beats_lambert_ggx(shared_data: Path) -> None:
     fitter, seg, meta = fit_brdf_auto([brdf_dataset(path, p) for p in names], time_limit=None)
     assert meta["parametrization"] == HALF_VECTOR
     assert meta["segments"]["dt"] == DEFAULT_DT and meta["segments"]["default"]
-    assert meta["segments"]["abs_width"] == NOISE_FLOOR
+    assert meta["segments"]["floor_rel"] == HALF_VECTOR_FLOOR_REL
     assert fitter.success_ and all(str(v).startswith("proved") for v in meta["validity"])
     assert all(p["proved"] and p["q_margin"] > 0 for p in meta["proof"])
     pred = np.stack([r.rational(seg.x) for r in fitter.results_], axis=1)
@@ -77,6 +77,7 @@ def test_default_width_follows_what_the_data_needs(shared_data: Path) -> None:
     x = np.array([[0.0, 0.0], [1e-4, 0.0], [1.0, 1.0], [0.5, 0.2]])
     y = np.array([1.0, 1.5, 1.0, 1.0])
     dt = default_dt(x, y, floor=0.0)
+    assert default_dt(x, y, floor=0.0, quantile=0.0) == DEFAULT_DT  # the typical pair: none
     assert dt == 0.22  # 1.1 x |1.5 - 1.0| / (1.5 + 1.0)
     assert (1 + dt) * 1.0 >= (1 - dt) * 1.5
 
@@ -125,7 +126,7 @@ def test_a_rejected_candidate_is_solved_again_before_it_is_repaired(shared_data:
 
     ds = brdf_dataset(shared_data / "cornell" / "mystique.brdf", RUSIN, channels=["B"])
     # the default widths before the floor is narrowed (a small fit: see SMALL_FIT_TOTAL)
-    fitter, seg, _ = fit_brdf(ds, dt=DEFAULT_DT, floor_rel=0.001,
+    fitter, seg, _ = fit_brdf(ds, dt=DEFAULT_DT, floor_rel=HALF_VECTOR_FLOOR_REL,
                               time_limit=None)
     res = fitter.result_
     assert res.success and (res.n, res.m) == (1, 6), res.message

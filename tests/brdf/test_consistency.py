@@ -44,12 +44,13 @@ def test_a_chain_of_disjoint_neighbours_ends_consistent_in_one_pass() -> None:
     assert n_again == 0 and np.array_equal(again.lo, out.lo)
 
 
-def test_garnet_red_default_segments_are_consistent(shared_data: Path) -> None:
-    """garnet_red in the half-vector frame: a few dozen samples conflict with a nearby
-    one (at 80 degrees the light and the viewer nearly exchanged give values 10x apart);
-    only those are widened, and a user's --dt segments are left as given."""
+def test_garnet_red_noise_level_segments_are_made_consistent(shared_data: Path) -> None:
+    """garnet_red in the half-vector frame at +-6 % with a 1e-3 1/sr floor: some samples
+    conflict with their nearest neighbour (at 80 degrees the light and the viewer nearly
+    exchanged give values 10x apart); only those are widened, and a user's --dt segments
+    are left as given."""
     ds = brdf_dataset(shared_data / "cornell" / "garnet_red.brdf", HALF_VECTOR)
-    seg = brdf_segments(ds)  # the default widths
+    seg = brdf_segments(ds, dt=0.06, abs_width=1e-3)
     out, n = consistent_segments(seg)
     assert 0 < n < 0.2 * ds.n_points
     again, n_again = consistent_segments(out)
@@ -62,7 +63,7 @@ def test_garnet_red_default_segments_are_consistent(shared_data: Path) -> None:
 
 
 def test_a_channel_with_no_candidate_is_widened_alone() -> None:
-    """Default widths: channel b has one point measured twice, 1.0 and 1.2 (disjoint at
+    """Default widths of a table: channel b has one point measured twice, 1.0 and 1.2 (disjoint at
     +-5 %), so it has no candidate; it is refitted alone at 0.08, then 0.12, where the
     two overlap, while channel a keeps its fit at 0.05."""
     from ratfit.io.data import Dataset
@@ -74,7 +75,7 @@ def test_a_channel_with_no_candidate_is_widened_alone() -> None:
     b = 1.0 + 0.0 * x[:, 0]
     b[-1] = 1.2
     ds = Dataset(x, np.stack([a, b], axis=1), None, None, ("u", "v"), ("a", "b"),
-                 {"param_in": "UNKNOWN"})
+                 {"param_in": "UNKNOWN", "format": "merl"})  # a table: noise-level floor
     fitter, seg, meta = fit_brdf(ds, consistent=False, polish=False)
     assert meta["segments"]["dt"] == 0.05
     assert meta["segments"]["channel_dt"] == [0.05, 0.12]

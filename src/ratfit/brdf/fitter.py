@@ -52,8 +52,8 @@ from ratfit.io.data import Dataset
 from ratfit.io.fitfile import SavedFit, fit_document, load_fit, save_fit
 
 __all__ = ["BRDF_SOLVER", "DEFAULT_DT", "DEFAULT_FLOOR_REL", "BRDFFit", "BRDFFitter",
-           "HALF_VECTOR", "candidate_parametrizations",
-           "brdf_metrics", "widened_dt", "brdf_segments",
+           "HALF_VECTOR", "HALF_VECTOR_FLOOR_REL", "candidate_parametrizations",
+           "default_floor_rel", "brdf_metrics", "widened_dt", "brdf_segments",
            "check_floor_rel", "cos_theta_l", "default_dt", "fit_brdf", "fit_brdf_auto",
            "alta_brdf_fit", "load_brdf_fit", "nonnegative_segments", "prepare_values",
            "resolve_widths",
@@ -62,18 +62,23 @@ __all__ = ["BRDF_SOLVER", "DEFAULT_DT", "DEFAULT_FLOOR_REL", "BRDFFit", "BRDFFit
 
 Array = NDArray[np.float64]
 # Segments when neither the command nor the file gives any: 5 % of each value, the
-# order of a gonioreflectometer's noise, widened where nearby samples need it, with an
-# absolute floor at the noise level NOISE_FLOOR (1e-3 1/sr, brdf/options.py), so that
-# relative accuracy holds through the whole dynamic range: a floor of 0.1-0.2 % of the
-# channel's peak (the default before 2026-11-26) lay above the diffuse values of glossy
-# paints, and the fits came out 2-8x too bright there.
+# order of a gonioreflectometer's noise, widened where nearby samples need it, with a
+# floor for near-zero values. For a table of every cell (MERL) the floor is the noise
+# level NOISE_FLOOR (1e-3 1/sr, brdf/options.py), so relative accuracy holds through the
+# whole dynamic range: a known Lambert + 2 GGX table comes back within 2 % median, 4 %
+# at the 95th percentile (at 0.2 % of the peak: 112-683 % median, too bright). Scattered
+# measurements keep a floor of 0.2 % of each channel's peak (0.1 % in the half-vector
+# frame) for now: at the noise floor garnet_red's G and B have no candidate in the
+# reciprocal frame below +-48 % and +-72 % (its reciprocal pairs differ 10x at 80
+# degrees, its diffuse G/B vary 12-19 % between neighbours) and the default fit ran
+# 15 min to exit 1 (2026-11-26); see docs/howto/brdf.md.
 DEFAULT_DT = 0.05
-# default_dt widens DEFAULT_DT to what this quantile of nearly coincident sample pairs
-# needs to overlap; the pairs above it are widened one by one (brdf/consistency.py).
-CLOSE_PAIR_QUANTILE = 0.9
-#: A floor as a fraction of the channel's largest value (``--floor-rel``): the user's
-#: choice only; the defaults use the absolute :data:`NOISE_FLOOR`.
 DEFAULT_FLOOR_REL = 0.002
+# For tables, default_dt widens DEFAULT_DT to what this quantile of nearly coincident
+# sample pairs needs to overlap (the pairs above it are widened one by one:
+# brdf/consistency.py); a network-encoded RGL table differs 10x over phi_d at
+# theta_h = 0, where every phi_d is the same pair of directions. Scattered data: all pairs.
+CLOSE_PAIR_QUANTILE = 0.9
 _NEEDS_THETA_L = ("full", "isotropic", "tv_tl")
 # The half-vector frame, tried before an isotropic angle set when the user names no
 # parametrization: a specular peak (theta_h = 0) and a retro-reflection peak
@@ -81,6 +86,10 @@ _NEEDS_THETA_L = ("full", "isotropic", "tv_tl")
 # the same segments: cayman 39 -> 25 coefficients, krylon_blue 128 -> 54, all five
 # smaller); the retro files have no fit up to 100 in their own angles and one here.
 HALF_VECTOR = "RUSIN_TH_TD_SYM"
+# Its default floor for scattered data is half as wide: measured on the five Cornell
+# materials against lambert+ggx / lambert+beckmann, it wins all three errors in 12 of 15
+# channels at 0.1 % (5 of 15 at 0.2 %), with 7-34 coefficients per channel.
+HALF_VECTOR_FLOOR_REL = 0.001
 # Valid points of a grid of the coordinate box (faces included) that join the angle grid
 # as validity rows: the proof covers the whole evaluated region, and the angle grid
 # leaves the band next to the mirror direction (theta_h -> 0) nearly empty.
@@ -144,18 +153,17 @@ def prepare_values(ds: Dataset, *, cosine: bool = False, clamp: float | None = N
     return y
 
 
-def default_dt(x: ArrayLike, y: ArrayLike, floor: float = NOISE_FLOOR,
-               near: float = 0.01) -> float:
+def default_dt(x: ArrayLike, y: ArrayLike, floor: float | ArrayLike = NOISE_FLOOR,
+               near: float = 0.01, quantile: float = 1.0) -> float:
     """The relative width the defaults use: :data:`DEFAULT_DT`, widened where the data
     itself needs more. Two samples closer than ``near`` (a fraction of each axis's
     span) are, for a smooth function, the same point measured twice: their segments
-    should overlap, so dt is at least 1.1 x the :data:`CLOSE_PAIR_QUANTILE` quantile of
-    |y_i - y_j| / (y_i + y_j) over such pairs (the absolute ``floor`` taken off),
-    rounded up to a hundredth. Resampled slices (ALTA's EXR: nearest-neighbour jumps
-    everywhere) are widened this way; scattered goniometer data keeps 0.05. The few
-    pairs beyond that quantile (garnet_red: reciprocal pairs at 80 degrees 10x apart)
-    are :func:`~ratfit.brdf.consistency.consistent_segments`' to reconcile, one by one:
-    the largest of them set garnet_red's dt to 0.84 under a 1e-3 1/sr floor.
+    should overlap, so dt is at least 1.1 x the ``quantile`` (1: the largest) of
+    |y_i - y_j| / (y_i + y_j) over such pairs (the absolute ``floor``, per channel or
+    one for all, taken off), rounded up to a hundredth. Resampled slices (ALTA's EXR:
+    nearest-neighbour jumps) get dt 0.22 this way; scattered goniometer data keeps 0.05.
+    Below 1, the pairs beyond the quantile are
+    :func:`~ratfit.brdf.consistency.consistent_segments`' to reconcile one by one.
     """
     from scipy.spatial import cKDTree
 
@@ -174,11 +182,25 @@ def default_dt(x: ArrayLike, y: ArrayLike, floor: float = NOISE_FLOOR,
     j = i[close, 1]
     a, b = ya[close], ya[j]
     with np.errstate(divide="ignore", invalid="ignore"):
-        need = np.maximum(np.abs(a - b) - 2 * floor, 0.0) / (a + b)
+        need = np.maximum(np.abs(a - b) - 2 * np.asarray(floor, dtype=float), 0.0) / (a + b)
     need = np.where(np.isfinite(need), need, 0.0).max(axis=1)
-    typical = float(np.quantile(need, CLOSE_PAIR_QUANTILE))
+    typical = float(np.quantile(need, quantile))
     # rounded up to a hundredth: a width a user can read and type
     return float(min(max(DEFAULT_DT, np.ceil(110.0 * typical) / 100.0), 0.9))
+
+
+def default_floor_rel(param: str) -> float:
+    """The default floor of scattered data in a parametrization, a fraction of each
+    channel's peak: :data:`HALF_VECTOR_FLOOR_REL` in the half-vector frames,
+    :data:`DEFAULT_FLOOR_REL` elsewhere (tables use :data:`NOISE_FLOOR`)."""
+    p = find_parametrization(param)
+    return HALF_VECTOR_FLOOR_REL if p is not None and p.name in (HALF_VECTOR, "RUSIN_TH_TD_PD") \
+        else DEFAULT_FLOOR_REL
+
+
+def is_table(ds: Dataset) -> bool:
+    """A table of every cell (MERL): its default segments have the noise floor."""
+    return str(ds.meta.get("format", "")).lower() == "merl"
 
 
 def check_floor_rel(dt: float | None, abs_width: float | None,
@@ -199,16 +221,24 @@ def resolve_widths(ds: Dataset, dt: float | None, abs_width: float | None,
                    clamp: float | None = None
                    ) -> tuple[float | None, float | None, float | None, bool]:
     """(dt, abs_width, floor_rel, defaulted): the widths as given, or, when none is
-    given and the file has no intervals of its own, :func:`default_dt` with the
-    absolute floor :data:`NOISE_FLOOR` (``defaulted`` True)."""
+    given and the file has no intervals of its own (``defaulted`` True),
+    :func:`default_dt` with the absolute floor :data:`NOISE_FLOOR` for a table
+    (:func:`is_table`), else with the parametrization's :func:`default_floor_rel`."""
     if dt is None and abs_width is None and floor_rel is None and (
             ds.lo is None or ds.hi is None):
         # resolved once per dataset and weighting: kept in its meta (a KD-tree pass)
         key = f"default_widths(cosine={bool(cosine)}, clamp={clamp!r})"
         if key not in ds.meta:
             y = prepare_values(ds, cosine=cosine, clamp=clamp)
-            ds.meta[key] = default_dt(ds.x, y, NOISE_FLOOR)
-        return ds.meta[key], NOISE_FLOOR, None, True
+            if is_table(ds):
+                ds.meta[key] = (default_dt(ds.x, y, NOISE_FLOOR, quantile=CLOSE_PAIR_QUANTILE),
+                                NOISE_FLOOR, None)
+            else:
+                floor = default_floor_rel(str(ds.meta.get("param_in", "UNKNOWN")))
+                top = np.abs(y).max(axis=0)
+                ds.meta[key] = (default_dt(ds.x, y, floor * top), None, floor)
+        dt_default, absw, floor_rel = ds.meta[key]
+        return dt_default, absw, floor_rel, True
     return dt, abs_width, floor_rel, False
 
 
@@ -225,7 +255,7 @@ def brdf_segments(
 
     ``floor_rel`` is an absolute half-width per channel: floor_rel x max |y_j|.
     Without any width the file's own intervals (ALTA #VS 1/2) are used, and
-    without those :func:`default_dt` with the absolute floor :data:`NOISE_FLOOR`.
+    without those the defaults of :func:`resolve_widths`.
     """
     dt, abs_width, floor_rel, _ = resolve_widths(ds, dt, abs_width, floor_rel,
                                                  cosine=cosine, clamp=clamp)
@@ -283,7 +313,7 @@ def fit_brdf(ds: Dataset, *, dt: float | None = None, abs_width: float | None = 
     if cosine and dropped.size:
         seg = Segments(ds.x, seg.lo, seg.hi, seg.y, seg.names)
     merged = 0
-    consistent = default_widths if consistent is None else consistent
+    consistent = default_widths and is_table(ds) if consistent is None else consistent
     if consistent:
         seg, merged = consistent_segments(seg)
     known = find_parametrization(str(ds.meta.get("param_in", UNKNOWN_PARAMETRIZATION)))
@@ -538,6 +568,7 @@ def _widen(ds: Dataset, tried: list[dict[str, Any]], kw: dict[str, Any],
     if first is None or not first.get("no_candidate"):
         return None
     dt, floor = float(first["dt"]), float(first["floor"])
+    floor_key = "abs_width" if is_table(ds) else "floor_rel"
     out = None
     steps: list[float] = []
     while dt < MAX_DEFAULT_DT:
@@ -545,8 +576,8 @@ def _widen(ds: Dataset, tried: list[dict[str, Any]], kw: dict[str, Any],
         new = widened_dt(dt)
         if beat is not None and (new, floor) > beat:
             break
-        f2, seg2, meta2 = fit_brdf(ds, **{**kw, "dt": new, "abs_width": floor,
-                                          "consistent": True})
+        f2, seg2, meta2 = fit_brdf(ds, **{**kw, "dt": new, floor_key: floor,
+                                          "consistent": is_table(ds)})
         none = _no_candidate(f2)
         entry = _tried(f2, meta2, (new, floor), None, no_candidate=none, widened_from=dt)
         tried.append(entry)
@@ -560,9 +591,11 @@ def _widen(ds: Dataset, tried: list[dict[str, Any]], kw: dict[str, Any],
     return out
 
 
-def _floor_covers_most(seg: Segments, floor: float) -> bool:
-    """More than half of some channel's samples lie under the absolute ``floor``."""
-    return bool(np.any(np.mean(np.abs(seg.center) < floor, axis=0) > 0.5))
+def _floor_covers_most(seg: Segments, floor: float, relative: bool) -> bool:
+    """More than half of some channel's samples lie under the floor (``relative``: a
+    fraction of each channel's largest value, else absolute)."""
+    top = np.max(np.abs(seg.center), axis=0) if relative else 1.0
+    return bool(np.any(np.mean(np.abs(seg.center) < floor * top, axis=0) > 0.5))
 
 
 def _narrow_floor(best: tuple, datasets: list[Dataset], tried: list[dict[str, Any]],
@@ -572,14 +605,16 @@ def _narrow_floor(best: tuple, datasets: list[Dataset], tried: list[dict[str, An
     kept only when verified. Each refit is recorded in ``tried``."""
     for _ in range(FLOOR_REFINEMENTS):
         fitter, seg, meta, band, total = best
-        if (max(r.n + r.m for r in fitter.results_) > SMALL_FIT_TOTAL
-                or not band[1] or not _floor_covers_most(seg, band[1])):
-            break
         ds = next(d for d in datasets
                   if str(d.meta.get("param_in", "UNKNOWN")) == meta["parametrization"])
+        table = is_table(ds)
+        if (max(r.n + r.m for r in fitter.results_) > SMALL_FIT_TOTAL
+                or not band[1] or not _floor_covers_most(seg, band[1], not table)):
+            break
         floor = band[1] / 2
-        f2, seg2, meta2 = fit_brdf(ds, **{**kw, "dt": band[0], "abs_width": floor,
-                                          "consistent": True})
+        f2, seg2, meta2 = fit_brdf(ds, **{**kw, "dt": band[0],
+                                          ("abs_width" if table else "floor_rel"): floor,
+                                          "consistent": table})
         entry = _tried(f2, meta2, (band[0], floor), kw.get("max_total"),
                        narrowed_floor_from=band[1])
         tried.append(entry)
