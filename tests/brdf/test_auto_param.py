@@ -18,7 +18,9 @@ from ratfit.brdf.fitter import (
     candidate_parametrizations,
     default_floor_rel,
     fit_brdf_auto,
+    resolve_widths,
 )
+from ratfit.brdf.options import NOISE_FLOOR
 from ratfit.brdf.parametrizations import get_parametrization
 from ratfit.brdf.validity import check_validity
 from ratfit.io.data import Dataset
@@ -52,6 +54,20 @@ def test_candidates_only_for_isotropic_angle_sets() -> None:
     assert default_floor_rel(ISO) == default_floor_rel("STARK_2D") == DEFAULT_FLOOR_REL
 
 
+def test_default_floor_of_a_table_is_the_noise_level() -> None:
+    """A MERL table's default floor is absolute (1e-3 1/sr) in every frame; scattered
+    data keeps a fraction of each channel's peak."""
+    for param in (ISO, HALF_VECTOR):
+        ds = _lobe(param)
+        assert resolve_widths(ds, None, None, None) == (0.05, None, default_floor_rel(param),
+                                                        True)
+        table = Dataset(ds.x, ds.y, None, None, ds.input_names, ds.output_names,
+                        {"param_in": param, "format": "merl"})
+        assert resolve_widths(table, None, None, None) == (0.05, NOISE_FLOOR, None, True)
+    # a user's widths are kept as given
+    assert resolve_widths(_lobe(ISO), 0.1, None, 0.002) == (0.1, None, 0.002, False)
+
+
 @pytest.mark.slow
 def test_auto_keeps_the_verified_fit_and_caps_the_second_search() -> None:
     """A lobe in cos(theta_h) is a small rational in the half-vector frame and has no
@@ -67,17 +83,25 @@ def test_auto_keeps_the_verified_fit_and_caps_the_second_search() -> None:
     # the kept fit is in the kept coordinates, and physically valid there
     assert np.allclose(seg.x, half.x) and np.array_equal(seg.center[:, 0], half.y[:, 0])
     assert check_validity(fitter.result_.rational, HALF_VECTOR).valid
-    # the other order: after a verified fit, the next search stops at its size
+    # the other order: after a verified fit in the half-vector frame (reciprocal by
+    # construction) the angles are not tried
     fitter2, _, meta2 = fit_brdf_auto([half, iso], dt=0.05, floor_rel=0.002, max_total=40)
     a, b = meta2["candidates"]
-    assert a["verified"] and b["searched_up_to"] == a["coefficients"] and not b["verified"]
+    assert a["verified"] and b["skipped"] and "reciprocal" in b["skipped"]
     assert meta2["parametrization"] == HALF_VECTOR
     assert fitter2.result_.n + fitter2.result_.m == a["coefficients"]
-    # default widths: the angles' floor is wider, so after a verified fit they are skipped
-    _, _, meta3 = fit_brdf_auto([half, iso], max_total=40)
+    # after a verified fit in a frame that is not symmetric, the next search stops at
+    # its size
+    pd = _lobe("RUSIN_TH_TD_PD")
+    _, _, meta3 = fit_brdf_auto([pd, iso], dt=0.05, floor_rel=0.002, max_total=40)
     a, b = meta3["candidates"]
-    assert a["verified"] and a["floor_rel"] == HALF_VECTOR_FLOOR_REL
-    assert b["skipped"] and b["verified"] is None and b["floor_rel"] == DEFAULT_FLOOR_REL
+    assert a["verified"] and a["floor"] == b["floor"] == 0.002
+    assert b["searched_up_to"] == a["coefficients"] and not b["verified"]
+    # default widths: the angles' floor is wider, so after a verified fit they are skipped
+    _, _, meta4 = fit_brdf_auto([pd, iso], max_total=40)
+    a, b = meta4["candidates"]
+    assert a["verified"] and a["floor"] == HALF_VECTOR_FLOOR_REL
+    assert b["skipped"] and b["verified"] is None
 
 
 @pytest.mark.slow
@@ -99,18 +123,18 @@ def test_cli_default_fit_of_cayman_is_in_the_half_vector_frame(shared_data: Path
     doc = json.loads(r.stdout)
     half, iso, *narrowed = doc["parametrization_candidates"]
     assert half["parametrization"] == HALF_VECTOR and half["verified"]
-    assert half["coefficients"] <= 30 and half["floor_rel"] == HALF_VECTOR_FLOOR_REL
+    assert half["coefficients"] <= 30 and half["floor"] == HALF_VECTOR_FLOOR_REL
     assert iso["parametrization"] == ISO and iso["skipped"]
     assert doc["parametrization"] == HALF_VECTOR
     assert 1 <= len(narrowed) <= 2
-    floors = [half["floor_rel"]] + [c["floor_rel"] for c in narrowed]
+    floors = [half["floor"]] + [c["floor"] for c in narrowed]
     for c, before in zip(narrowed, floors, strict=False):
-        assert c["narrowed_floor_from"] == before and c["floor_rel"] == before / 2
+        assert c["narrowed_floor_from"] == before and c["floor"] == before / 2
     kept = [half] + [c for c in narrowed if c["verified"]]
     assert sum(doc["n"]) + sum(doc["m"]) == kept[-1]["coefficients"]
     saved = json.loads(out.read_text())
     assert saved["brdf"]["parametrization"] == HALF_VECTOR
-    assert saved["brdf"]["segments"]["floor_rel"] == kept[-1]["floor_rel"]
+    assert saved["brdf"]["segments"]["floor_rel"] == kept[-1]["floor"]
     # the saved fit, evaluated at the measured directions, against the model
     ev = run_cli("brdf", "compare", data, out, "--model", "lambert+ggx", "--json")
     assert ev.exit_code == 0, ev.output

@@ -47,10 +47,8 @@ def test_default_fit_of_acryl_blue_beats_lambert_ggx(shared_data: Path) -> None:
     assert names == (HALF_VECTOR, iso)
     fitter, seg, meta = fit_brdf_auto([brdf_dataset(path, p) for p in names], time_limit=None)
     assert meta["parametrization"] == HALF_VECTOR
-    assert meta["segments"] == {"dt": DEFAULT_DT, "abs_width": None,
-                                "floor_rel": HALF_VECTOR_FLOOR_REL, "default": True}
-    # the angles' default segments are wider (floor 0.2 %): not tried
-    assert meta["candidates"][1]["skipped"]
+    assert meta["segments"]["dt"] == DEFAULT_DT and meta["segments"]["default"]
+    assert meta["segments"]["floor_rel"] == HALF_VECTOR_FLOOR_REL
     assert fitter.success_ and all(str(v).startswith("proved") for v in meta["validity"])
     assert all(p["proved"] and p["q_margin"] > 0 for p in meta["proof"])
     pred = np.stack([r.rational(seg.x) for r in fitter.results_], axis=1)
@@ -78,7 +76,8 @@ def test_default_width_follows_what_the_data_needs(shared_data: Path) -> None:
     # the same point measured twice, 1.0 and 1.5: the segments must overlap
     x = np.array([[0.0, 0.0], [1e-4, 0.0], [1.0, 1.0], [0.5, 0.2]])
     y = np.array([1.0, 1.5, 1.0, 1.0])
-    dt = default_dt(x, y, floor_rel=0.0)
+    dt = default_dt(x, y, floor=0.0)
+    assert default_dt(x, y, floor=0.0, quantile=0.0) == DEFAULT_DT  # the typical pair: none
     assert dt == 0.22  # 1.1 x |1.5 - 1.0| / (1.5 + 1.0)
     assert (1 + dt) * 1.0 >= (1 - dt) * 1.5
 

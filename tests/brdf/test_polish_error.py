@@ -48,7 +48,7 @@ def test_relative_polish_keeps_the_diffuse_part_closer_to_the_data():
 
 
 def test_polish_error_is_checked_and_offered_on_the_command_line(tmp_path):
-    assert BRDFFitter().options().polish_error == "absolute"
+    assert BRDFFitter().options().polish_error == "relative"
     with pytest.raises(InputError, match="polish_error"):
         BRDFFitter(polish_error="log").options()
     res = CliRunner().invoke(main, ["brdf", "fit", str(tmp_path / "x.brdf"),

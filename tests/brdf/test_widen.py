@@ -52,7 +52,8 @@ def test_no_candidate_at_the_default_widens_until_one_fits() -> None:
             for c in tried] == [(0.05, None, True, False), (0.08, 0.05, True, False),
                                 (0.12, 0.08, True, False), (0.18, 0.12, False, True)]
     assert meta["segments"] == {"dt": 0.18, "abs_width": None, "floor_rel": 0.002,
-                                "default": True, "widened_from": [0.05, 0.08, 0.12]}
+                                "default": True, "widened_from": [0.05, 0.08, 0.12],
+                                "merged": 0, "channel_dt": None}
     # every sample inside the kept segments, which are 0.18 wide
     np.testing.assert_allclose(seg.hi[:, 0], 1.18 * y)
     r = fitter.result_

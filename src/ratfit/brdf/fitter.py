@@ -63,20 +63,34 @@ __all__ = ["BRDF_SOLVER", "DEFAULT_DT", "DEFAULT_FLOOR_REL", "BRDFFit", "BRDFFit
 
 Array = NDArray[np.float64]
 # Segments when neither the command nor the file gives any: 5 % of each value, the
-# order of a gonioreflectometer's noise, with a floor of 0.2 % of the channel's
-# largest value so that the diffuse part and measured zeros stay fittable.
+# order of a gonioreflectometer's noise, widened where nearby samples need it, with a
+# floor for near-zero values. For a table of every cell (MERL) the floor is the noise
+# level NOISE_FLOOR (1e-3 1/sr, brdf/options.py), so relative accuracy holds through the
+# whole dynamic range: a known Lambert + 2 GGX table comes back within 2 % median, 4 %
+# at the 95th percentile (at 0.2 % of the peak: 112-683 % median, too bright). Scattered
+# measurements keep a floor of 0.2 % of each channel's peak (0.1 % in the half-vector
+# frame) for now: at the noise floor garnet_red's G and B have no candidate in the
+# reciprocal frame below +-48 % and +-72 % (its reciprocal pairs differ 10x at 80
+# degrees, its diffuse G/B vary 12-19 % between neighbours) and the default fit ran
+# 15 min to exit 1 (2026-11-26); see docs/howto/brdf.md.
 DEFAULT_DT = 0.05
 DEFAULT_FLOOR_REL = 0.002
+# For tables, default_dt widens DEFAULT_DT to what this quantile of nearly coincident
+# sample pairs needs to overlap (the pairs above it are widened one by one:
+# brdf/consistency.py); a network-encoded RGL table differs 10x over phi_d at
+# theta_h = 0, where every phi_d is the same pair of directions. Scattered data: all pairs.
+CLOSE_PAIR_QUANTILE = 0.9
 _NEEDS_THETA_L = ("full", "isotropic", "tv_tl")
 # The half-vector frame, tried before an isotropic angle set when the user names no
 # parametrization: a specular peak (theta_h = 0) and a retro-reflection peak
 # (theta_d = 0) lie along its axes, so peaks cost few coefficients there (Cornell at
 # the same segments: cayman 39 -> 25 coefficients, krylon_blue 128 -> 54, all five
 # smaller); the retro files have no fit up to 100 in their own angles and one here.
-# Its default floor is half as wide: measured on the five Cornell materials against
-# lambert+ggx / lambert+beckmann, it wins all three errors in 12 of 15 channels at
-# 0.1 % (5 of 15 at 0.2 %), with 7-34 coefficients per channel.
 HALF_VECTOR = "RUSIN_TH_TD_SYM"
+# Its default floor for scattered data is half as wide: measured on the five Cornell
+# materials against lambert+ggx / lambert+beckmann, it wins all three errors in 12 of 15
+# channels at 0.1 % (5 of 15 at 0.2 %), with 7-34 coefficients per channel.
+HALF_VECTOR_FLOOR_REL = 0.001
 # Valid points of a grid of the coordinate box (faces included) that join the angle grid
 # as validity rows: the proof covers the whole evaluated region, and the angle grid
 # leaves the band next to the mirror direction (theta_h -> 0) nearly empty.
@@ -85,13 +99,10 @@ BOX_POINTS = 8000
 # chosen fit's proof may examine 40 000): a short proof that finds a negative value
 # rejects a candidate at once, one that runs out only defers to the final proof.
 SEARCH_PROOF_BOXES = 4000
-HALF_VECTOR_FLOOR_REL = 0.001
 # A default fit this small (per channel, at most) whose floor covers most samples has
 # accuracy to spare: its segments are absolute widths almost everywhere, as wide as
 # the floor. The floor is then halved (at most FLOOR_REFINEMENTS times) while the fit
-# stays verified and small. mystique (99.7 % of the samples under 0.1 % of the peak):
-# 3+4 / 3+4 / 1+6 coefficients, log RMSE 0.073 against lambert+ggx's 0.046; at
-# 0.05 % 3+5 / 3+5 / 3+5, log RMSE 0.017, and every error better than the models'.
+# stays verified and small (mystique: most of its values lie under 1e-3 1/sr).
 SMALL_FIT_TOTAL = 12
 FLOOR_REFINEMENTS = 2
 # When no split of a default fit has any candidate (every QP infeasible: found out in
@@ -156,15 +167,17 @@ def prepare_values(ds: Dataset, *, cosine: bool = False, clamp: float | None = N
     return y
 
 
-def default_dt(x: ArrayLike, y: ArrayLike, floor_rel: float = DEFAULT_FLOOR_REL,
-               near: float = 0.01) -> float:
+def default_dt(x: ArrayLike, y: ArrayLike, floor: float | ArrayLike = NOISE_FLOOR,
+               near: float = 0.01, quantile: float = 1.0) -> float:
     """The relative width the defaults use: :data:`DEFAULT_DT`, widened where the data
     itself needs more. Two samples closer than ``near`` (a fraction of each axis's
     span) are, for a smooth function, the same point measured twice: their segments
-    must overlap, so dt is at least 1.1 x the largest |y_i - y_j| / (y_i + y_j) over
-    such pairs (floors taken off), rounded up to a hundredth. Resampled slices
-    (ALTA's EXR: nearest-neighbour jumps) get dt 0.22 this way; scattered
-    goniometer data keeps 0.05.
+    should overlap, so dt is at least 1.1 x the ``quantile`` (1: the largest) of
+    |y_i - y_j| / (y_i + y_j) over such pairs (the absolute ``floor``, per channel or
+    one for all, taken off), rounded up to a hundredth. Resampled slices (ALTA's EXR:
+    nearest-neighbour jumps) get dt 0.22 this way; scattered goniometer data keeps 0.05.
+    Below 1, the pairs beyond the quantile are
+    :func:`~ratfit.brdf.consistency.consistent_segments`' to reconcile one by one.
     """
     from scipy.spatial import cKDTree
 
@@ -182,20 +195,26 @@ def default_dt(x: ArrayLike, y: ArrayLike, floor_rel: float = DEFAULT_FLOOR_REL,
         return DEFAULT_DT
     j = i[close, 1]
     a, b = ya[close], ya[j]
-    floor = floor_rel * ya.max(axis=0)
     with np.errstate(divide="ignore", invalid="ignore"):
-        need = np.maximum(np.abs(a - b) - 2 * floor, 0.0) / (a + b)
-    need = np.where(np.isfinite(need), need, 0.0)
+        need = np.maximum(np.abs(a - b) - 2 * np.asarray(floor, dtype=float), 0.0) / (a + b)
+    need = np.where(np.isfinite(need), need, 0.0).max(axis=1)
+    typical = float(np.quantile(need, quantile))
     # rounded up to a hundredth: a width a user can read and type
-    return float(min(max(DEFAULT_DT, np.ceil(110.0 * float(need.max())) / 100.0), 0.9))
+    return float(min(max(DEFAULT_DT, np.ceil(110.0 * typical) / 100.0), 0.9))
 
 
 def default_floor_rel(param: str) -> float:
-    """The default floor of a parametrization: :data:`HALF_VECTOR_FLOOR_REL` in the
-    half-vector frame, :data:`DEFAULT_FLOOR_REL` elsewhere."""
+    """The default floor of scattered data in a parametrization, a fraction of each
+    channel's peak: :data:`HALF_VECTOR_FLOOR_REL` in the half-vector frames,
+    :data:`DEFAULT_FLOOR_REL` elsewhere (tables use :data:`NOISE_FLOOR`)."""
     p = find_parametrization(param)
     return HALF_VECTOR_FLOOR_REL if p is not None and p.name in (HALF_VECTOR, "RUSIN_TH_TD_PD") \
         else DEFAULT_FLOOR_REL
+
+
+def is_table(ds: Dataset) -> bool:
+    """A table of every cell (MERL): its default segments have the noise floor."""
+    return str(ds.meta.get("format", "")).lower() == "merl"
 
 
 def check_floor_rel(dt: float | None, abs_width: float | None,
@@ -216,18 +235,24 @@ def resolve_widths(ds: Dataset, dt: float | None, abs_width: float | None,
                    clamp: float | None = None
                    ) -> tuple[float | None, float | None, float | None, bool]:
     """(dt, abs_width, floor_rel, defaulted): the widths as given, or, when none is
-    given and the file has no intervals of its own, :func:`default_dt` with the
-    parametrization's :func:`default_floor_rel` (``defaulted`` True)."""
+    given and the file has no intervals of its own (``defaulted`` True),
+    :func:`default_dt` with the absolute floor :data:`NOISE_FLOOR` for a table
+    (:func:`is_table`), else with the parametrization's :func:`default_floor_rel`."""
     if dt is None and abs_width is None and floor_rel is None and (
             ds.lo is None or ds.hi is None):
         # resolved once per dataset and weighting: kept in its meta (a KD-tree pass)
         key = f"default_widths(cosine={bool(cosine)}, clamp={clamp!r})"
         if key not in ds.meta:
             y = prepare_values(ds, cosine=cosine, clamp=clamp)
-            floor = default_floor_rel(str(ds.meta.get("param_in", "UNKNOWN")))
-            ds.meta[key] = (default_dt(ds.x, y, floor), floor)
-        dt_default, floor = ds.meta[key]
-        return dt_default, None, floor, True
+            if is_table(ds):
+                ds.meta[key] = (default_dt(ds.x, y, NOISE_FLOOR, quantile=CLOSE_PAIR_QUANTILE),
+                                NOISE_FLOOR, None)
+            else:
+                floor = default_floor_rel(str(ds.meta.get("param_in", "UNKNOWN")))
+                top = np.abs(y).max(axis=0)
+                ds.meta[key] = (default_dt(ds.x, y, floor * top), None, floor)
+        dt_default, absw, floor_rel = ds.meta[key]
+        return dt_default, absw, floor_rel, True
     return dt, abs_width, floor_rel, False
 
 
@@ -244,7 +269,7 @@ def brdf_segments(
 
     ``floor_rel`` is an absolute half-width per channel: floor_rel x max |y_j|.
     Without any width the file's own intervals (ALTA #VS 1/2) are used, and
-    without those :data:`DEFAULT_DT` with a floor of :data:`DEFAULT_FLOOR_REL`.
+    without those the defaults of :func:`resolve_widths`.
     """
     dt, abs_width, floor_rel, _ = resolve_widths(ds, dt, abs_width, floor_rel,
                                                  cosine=cosine, clamp=clamp)
@@ -267,14 +292,19 @@ def brdf_segments(
 
 def fit_brdf(ds: Dataset, *, dt: float | None = None, abs_width: float | None = None,
              floor_rel: float | None = None, cosine: bool = False, clamp: float | None = None,
-             positive_q: bool = False, **fitter_params: Any):
+             positive_q: bool = False, consistent: bool | None = None,
+             **fitter_params: Any):
     """Fit every channel of a BRDF dataset; returns (fitter, segments, brdf_meta).
 
     ``fitter_params`` go to :class:`ratfit.fitting.search.RationalFitter` (basis,
     index_set, max_total, n, m, jobs...). ``positive_q``: see
-    :attr:`BRDFFitter.positive_q`. ``brdf_meta`` is the ``"brdf"`` block of
-    the fit file.
+    :attr:`BRDFFitter.positive_q`. ``consistent``: samples within
+    :data:`~ratfit.brdf.consistency.CONSISTENT_NEAR` of each other whose segments are
+    disjoint get the hull of the two (:func:`~ratfit.brdf.consistency.consistent_segments`);
+    None: when the widths are ratfit's defaults (segments a user gave are the user's).
+    ``brdf_meta`` is the ``"brdf"`` block of the fit file.
     """
+    from ratfit.brdf.consistency import consistent_segments
     from ratfit.core.columns import constant_axes
 
     full = ds
@@ -296,12 +326,22 @@ def fit_brdf(ds: Dataset, *, dt: float | None = None, abs_width: float | None = 
                                              cosine=cosine, clamp=clamp))
     if cosine and dropped.size:
         seg = Segments(ds.x, seg.lo, seg.hi, seg.y, seg.names)
+    merged = 0
+    consistent = default_widths and is_table(ds) if consistent is None else consistent
+    if consistent:
+        seg, merged = consistent_segments(seg)
     known = find_parametrization(str(ds.meta.get("param_in", UNKNOWN_PARAMETRIZATION)))
     fitter = BRDFFitter(parametrization=UNKNOWN_PARAMETRIZATION if known is None else known.name,
                         positive_q=bool(positive_q),
                         used_coords=None if not dropped.size else tuple(int(k) for k in keep),
                         **fitter_params)
     fitter.fit(seg)
+    channel_dt = None
+    if (default_widths and dt is not None and seg.n_channels > 1
+            and fitter_params.get("max_total") is None):
+        # not under a size bound of the caller's (as in fit_brdf_auto's widening)
+        seg, channel_dt = _widen_channels(fitter, seg, dt, abs_width, consistent)
+        fitter.segments_ = seg
     sub = ds.meta.get("subset")
     if sub:
         # a subset fit is verified on that subset only: its status says so first,
@@ -320,7 +360,9 @@ def fit_brdf(ds: Dataset, *, dt: float | None = None, abs_width: float | None = 
         "param_out": ds.meta.get("param_out"),
         "channel_names": list(seg.names),
         "segments": {"dt": dt, "abs_width": abs_width, "floor_rel": floor_rel,
-                     "default": default_widths},
+                     "default": default_widths, "merged": merged,
+                     # per channel where a channel alone was widened (None: all at dt)
+                     "channel_dt": channel_dt},
         # a fit of a random subset is verified on that subset only
         "verified_on": ("all samples" if not ds.meta.get("subset") else
                         f"a random subset of {ds.meta['subset']['points']} of "
@@ -354,10 +396,12 @@ def candidate_parametrizations(param: str, cosine: bool = False) -> tuple[str, .
 
 
 def _band(ds: Dataset, kw: dict[str, Any]) -> tuple[float, float]:
-    """(dt, floor_rel) a fit of ``ds`` with options ``kw`` uses: how wide its segments are."""
-    dt, _, floor, _ = resolve_widths(ds, kw.get("dt"), kw.get("abs_width"), kw.get("floor_rel"),
-                                     cosine=bool(kw.get("cosine")), clamp=kw.get("clamp"))
-    return float(dt or 0.0), float(floor or 0.0)
+    """(dt, floor) a fit of ``ds`` with options ``kw`` uses: how wide its segments are
+    (the floor: the absolute width, else the fraction of the peak a user gave)."""
+    dt, absw, floor_rel, _ = resolve_widths(ds, kw.get("dt"), kw.get("abs_width"),
+                                            kw.get("floor_rel"), cosine=bool(kw.get("cosine")),
+                                            clamp=kw.get("clamp"))
+    return float(dt or 0.0), float(absw if absw is not None else floor_rel or 0.0)
 
 
 def fit_brdf_auto(datasets: list[Dataset], **kw: Any):
@@ -365,7 +409,7 @@ def fit_brdf_auto(datasets: list[Dataset], **kw: Any):
     returns (fitter, seg, meta) of the best verified fit.
 
     Best: the narrower segments (default widths depend on the parametrization:
-    :func:`default_dt`, :func:`default_floor_rel`), then the fewest coefficients over
+    :func:`default_dt`), then the fewest coefficients over
     all channels. After a verified fit, a parametrization whose segments would not
     be narrower is searched only up to that fit's largest channel total (it must be
     smaller to win), and one whose segments would be wider is not tried.
@@ -387,20 +431,32 @@ def fit_brdf_auto(datasets: list[Dataset], **kw: Any):
     for ds in datasets:
         name = str(ds.meta.get("param_in", "UNKNOWN"))
         opts = dict(kw)
+        if best is not None and best[2]["parametrization"] == HALF_VECTOR:
+            # reciprocal, mirror-symmetric and phi_d-free at the mirror by construction:
+            # a fit in other coordinates is none of these, whatever its size
+            tried.append({"parametrization": name, "verified": None, "coefficients": None,
+                          "dt": None, "floor": None, "searched_up_to": None,
+                          "skipped": f"{HALF_VECTOR} verified, and its fits are reciprocal "
+                                     "by construction"})
+            continue
         if best is not None:
             band = _band(ds, kw)  # before fitting: it may make the fit needless
             if band > best[3]:
                 tried.append({"parametrization": name, "verified": None, "coefficients": None,
-                              "dt": band[0], "floor_rel": band[1], "searched_up_to": None,
+                              "dt": band[0], "floor": band[1], "searched_up_to": None,
                               "skipped": "its segments would be wider than the kept fit's"})
                 continue
             if band == best[3]:
                 cap = max(r.n + r.m for r in best[0].results_)
                 opts["max_total"] = min(cap, int(kw.get("max_total") or cap))
         fitter, seg, meta = fit_brdf(ds, **opts)
-        band = float(meta["segments"]["dt"] or 0.0), float(meta["segments"]["floor_rel"] or 0.0)
+        segs = meta["segments"]
+        band = float(segs["dt"] or 0.0), float(segs["abs_width"] if segs["abs_width"] is not None
+                                               else segs["floor_rel"] or 0.0)
+        # a channel widened alone (fit_brdf) went as far as the ladder would
         entry = _tried(fitter, meta, band, opts.get("max_total"),
-                       no_candidate=_no_candidate(fitter))
+                       no_candidate=_no_candidate(fitter)
+                       and not meta["segments"].get("channel_dt"))
         tried.append(entry)
         last = (fitter, seg, meta)
         most = _more_verified(most, last)
@@ -451,11 +507,11 @@ def _widths_defaulted(kw: dict[str, Any]) -> bool:
 def _tried(fitter: RationalFitter, meta: dict[str, Any], band: tuple[float, float],
            searched_up_to: int | None, **extra: Any) -> dict[str, Any]:
     """One entry of ``meta["candidates"]``: a fit tried at segments ``band``
-    (dt, floor_rel); ``coefficients`` over all channels when verified."""
+    (dt, floor); ``coefficients`` over all channels when verified."""
     ok = bool(fitter.success_)
     return {"parametrization": meta["parametrization"], "verified": ok,
             "coefficients": sum(r.n + r.m for r in fitter.results_) if ok else None,
-            "dt": band[0], "floor_rel": band[1], "searched_up_to": searched_up_to, **extra}
+            "dt": band[0], "floor": band[1], "searched_up_to": searched_up_to, **extra}
 
 
 def _no_candidate(fitter: RationalFitter) -> bool:
@@ -464,6 +520,47 @@ def _no_candidate(fitter: RationalFitter) -> bool:
     Widening the segments is then the only way to a fit, and a cheap one to try."""
     failed = [r for r in fitter.results_ if not r.success]
     return bool(failed) and all(r.status == 1 and not r.time_limited for r in failed)
+
+
+def _widen_channels(fitter: BRDFFitter, seg: Segments, dt: float, floor: float | None,
+                    consistent: bool = True) -> tuple[Segments, list[float] | None]:
+    """Default widths: each channel whose search had no candidate at all (every split it
+    tested infeasible, nothing cut short) is fitted again alone at :func:`widened_dt`
+    widths until it has one, up to :data:`MAX_DEFAULT_DT`; the channels that verified
+    keep their fits and their width. Returns the segments (each widened channel's column
+    replaced) and the width of each channel, or None when none was widened.
+
+    Measured noise differs by channel: garnet_red's R verifies at 0.06 with a 1e-3 floor
+    while its G and B (noise 12-19 % of their diffuse values) have no candidate up to
+    100 coefficients there; widening all three refitted R at every step (13 min)."""
+    from ratfit.brdf.consistency import consistent_segments
+
+    widths = [dt] * seg.n_channels
+    lo, hi = seg.lo.copy(), seg.hi.copy()
+    y = seg.center
+    for j, res in enumerate(fitter.results_):
+        d = dt
+        while (not res.success and res.status == 1 and not res.time_limited
+               and d < MAX_DEFAULT_DT):
+            d = widened_dt(d)
+            one = Segments.from_widths(seg.x, y[:, j:j + 1], dt=d, abs_width=floor,
+                                       names=(seg.names[j],))
+            one = nonnegative_segments(one)
+            if consistent:
+                one, _ = consistent_segments(one)
+            alone = type(fitter)(**fitter.get_params()).fit(one)
+            res = replace(alone.results_[0],
+                          message=f"{alone.results_[0].message}; segments widened to "
+                                  f"+- {d:.3g} y for this channel alone (no candidate at "
+                                  f"{widths[j]:.3g})")
+            widths[j] = d
+            fitter.results_[j] = res
+            fitter.validity_[j] = alone.validity_[0]
+            fitter.proofs_[j] = alone.proofs_[0]
+            lo[:, j], hi[:, j] = one.lo[:, 0], one.hi[:, 0]
+    if widths == [dt] * seg.n_channels:
+        return seg, None
+    return Segments(seg.x, lo, hi, seg.y, seg.names), widths
 
 
 def widened_dt(dt: float) -> float:
@@ -476,7 +573,7 @@ def _widen(ds: Dataset, tried: list[dict[str, Any]], kw: dict[str, Any],
            beat: tuple[float, float] | None = None) -> tuple | None:
     """No verified default fit, and the fit of ``ds`` had no candidate at all: refit
     it at :func:`widened_dt` widths while each try still has none (each such try
-    takes seconds), up to :data:`MAX_DEFAULT_DT`, and only while its (dt, floor_rel)
+    takes seconds), up to :data:`MAX_DEFAULT_DT`, and only while its (dt, floor)
     stays at most ``beat`` (a verified fit's, which a wider one cannot win against).
     Returns (fitter, seg, meta, band, total) of the last try, or None when nothing
     was widened. Each try is recorded in ``tried`` with ``widened_from``."""
@@ -484,7 +581,8 @@ def _widen(ds: Dataset, tried: list[dict[str, Any]], kw: dict[str, Any],
     first = next((c for c in tried if c["parametrization"] == name), None)
     if first is None or not first.get("no_candidate"):
         return None
-    dt, floor = float(first["dt"]), float(first["floor_rel"])
+    dt, floor = float(first["dt"]), float(first["floor"])
+    floor_key = "abs_width" if is_table(ds) else "floor_rel"
     out = None
     steps: list[float] = []
     while dt < MAX_DEFAULT_DT:
@@ -492,7 +590,8 @@ def _widen(ds: Dataset, tried: list[dict[str, Any]], kw: dict[str, Any],
         new = widened_dt(dt)
         if beat is not None and (new, floor) > beat:
             break
-        f2, seg2, meta2 = fit_brdf(ds, **{**kw, "dt": new, "floor_rel": floor})
+        f2, seg2, meta2 = fit_brdf(ds, **{**kw, "dt": new, floor_key: floor,
+                                          "consistent": is_table(ds)})
         none = _no_candidate(f2)
         entry = _tried(f2, meta2, (new, floor), None, no_candidate=none, widened_from=dt)
         tried.append(entry)
@@ -506,10 +605,11 @@ def _widen(ds: Dataset, tried: list[dict[str, Any]], kw: dict[str, Any],
     return out
 
 
-def _floor_covers_most(seg: Segments, floor_rel: float) -> bool:
-    """More than half of some channel's samples lie under its floor."""
-    top = np.max(np.abs(seg.center), axis=0)
-    return bool(np.any(np.mean(np.abs(seg.center) < floor_rel * top, axis=0) > 0.5))
+def _floor_covers_most(seg: Segments, floor: float, relative: bool) -> bool:
+    """More than half of some channel's samples lie under the floor (``relative``: a
+    fraction of each channel's largest value, else absolute)."""
+    top = np.max(np.abs(seg.center), axis=0) if relative else 1.0
+    return bool(np.any(np.mean(np.abs(seg.center) < floor * top, axis=0) > 0.5))
 
 
 def _narrow_floor(best: tuple, datasets: list[Dataset], tried: list[dict[str, Any]],
@@ -519,13 +619,16 @@ def _narrow_floor(best: tuple, datasets: list[Dataset], tried: list[dict[str, An
     kept only when verified. Each refit is recorded in ``tried``."""
     for _ in range(FLOOR_REFINEMENTS):
         fitter, seg, meta, band, total = best
-        if (max(r.n + r.m for r in fitter.results_) > SMALL_FIT_TOTAL
-                or not band[1] or not _floor_covers_most(seg, band[1])):
-            break
         ds = next(d for d in datasets
                   if str(d.meta.get("param_in", "UNKNOWN")) == meta["parametrization"])
+        table = is_table(ds)
+        if (max(r.n + r.m for r in fitter.results_) > SMALL_FIT_TOTAL
+                or not band[1] or not _floor_covers_most(seg, band[1], not table)):
+            break
         floor = band[1] / 2
-        f2, seg2, meta2 = fit_brdf(ds, **{**kw, "dt": band[0], "floor_rel": floor})
+        f2, seg2, meta2 = fit_brdf(ds, **{**kw, "dt": band[0],
+                                          ("abs_width" if table else "floor_rel"): floor,
+                                          "consistent": table})
         entry = _tried(f2, meta2, (band[0], floor), kw.get("max_total"),
                        narrowed_floor_from=band[1])
         tried.append(entry)
@@ -597,7 +700,7 @@ class BRDFFitter(RationalFitter):
         in QP solves (:data:`POLISH_WORK_SHARE`), and a quarter of a ``time_limit``
         when one is given; when that runs out it keeps the search's fit, saying so
         in the message.
-    polish_error : {"absolute", "relative"}, default "absolute"
+    polish_error : {"absolute", "relative"}, default "relative"
         What the polish minimises: the plain squared errors, or the squared errors
         relative to |y| + 1e-3 1/sr (:data:`~ratfit.brdf.options.NOISE_FLOOR`), so that
         a diffuse part far below the peak counts as much as the peak.
@@ -637,7 +740,7 @@ class BRDFFitter(RationalFitter):
 
     def __init__(self, *, parametrization: str = UNKNOWN_PARAMETRIZATION,
                  positive_q: bool = False, physical: bool = True, polish: bool = True,
-                 polish_error: str = "absolute",
+                 polish_error: str = "relative",
                  used_coords: tuple[int, ...] | None = None,
                  solver: str = BRDF_SOLVER, time_limit: float | None = DEFAULT_TIME_LIMIT,
                  **params: Any) -> None:

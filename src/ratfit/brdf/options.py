@@ -28,12 +28,11 @@ BRDF_SOLVER = first_available(("daqp", "quadprog"))
 #: relative error log((f + e)/(y + e)) that held-out errors and the relative polish use).
 #: Cornell's diffuse values of glossy paints lie at 3e-3..5e-2 1/sr, 1e-4 of their peak.
 NOISE_FLOOR = 1e-3
-#: What the least-squares polish minimises: "absolute" the sum of (f - y)^2 (the default),
-#: "relative" the sum of ((f - y)/(|y| + e))^2, e = :data:`NOISE_FLOOR`. The relative one
-#: brings a known glossy material's diffuse part closer to the data (90th pct |log(fit/data)|
-#: 0.26 -> 0.17), but on garnet_red, 2026-11-26, the median fit/data over diffuse samples
-#: was R/G/B 1.07/2.87/1.97 against 0.96/2.31/2.16 for the absolute polish: the floor of the
-#: default segments (0.1 % of the peak), not the polish, sets the diffuse colour there.
+#: What the least-squares polish minimises: "relative" the sum of ((f - y)/(|y| + e))^2,
+#: e = :data:`NOISE_FLOOR` (the default), "absolute" the sum of (f - y)^2. With segments
+#: floored at the noise level, the relative polish gives garnet_red's diffuse samples
+#: (theta_h > 0.3) a median fit/data of R/G/B 0.97/1.04/0.97, the absolute one
+#: 0.97/1.22/0.88 (2026-11-26, dt 0.1, floor 2e-3, RUSIN_TH_TD_PD).
 POLISH_ERRORS = ("absolute", "relative")
 #: The parametrization of coordinates no registry entry describes: the plain pole check.
 UNKNOWN_PARAMETRIZATION = "UNKNOWN"
@@ -73,7 +72,7 @@ BRDF_OPTIONS = extend_spec(
     Option("positive_q", "bool", False, "q > 0 on the valid grid inside the QP.", cli=False),
     Option("physical", "bool", True, "q > 0, p >= 0 on valid direction pairs.", cli=False),
     Option("polish", "bool", True, "Least-squares polish of each verified fit.", cli=False),
-    Option("polish_error", "choice", "absolute",
+    Option("polish_error", "choice", "relative",
            "Error the polish minimises: relative (to |y| + 1e-3) or absolute.",
            POLISH_ERRORS, cli=False),
     Option("used_coords", "indices", None,
@@ -95,7 +94,7 @@ class BRDFOptions(FitOptions):
     positive_q: bool = False
     physical: bool = True
     polish: bool = True
-    polish_error: str = "absolute"
+    polish_error: str = "relative"
     used_coords: tuple[int, ...] | None = None
 
 

@@ -46,14 +46,17 @@ def _split_channels(values: tuple[str, ...]) -> list[str]:
 @click.option("--dt", type=float,
               help="Relative segment width: [(1-dt) y, (1+dt) y]. Without --dt, --abs-width "
                    "and --floor-rel: the file's own intervals, else 0.05 (widened where "
-                   "nearby samples need it) with --floor-rel 0.002 (0.001 in "
-                   "RUSIN_TH_TD_PD; halved up to twice while the fit stays at most 12 "
-                   "coefficients per channel and most samples lie under the floor). "
+                   "nearby samples need it) with an absolute floor of 1e-3 1/sr, the "
+                   "noise level (halved up to twice while the fit stays at most 12 "
+                   "coefficients per channel and most samples lie under the floor); "
+                   "samples within 2 % of each axis of each other whose segments are "
+                   "disjoint get the hull of the two. "
                    "When nothing verifies and every split tested was infeasible, that "
                    "default is widened 1.5x (up to 0.9) until a try has a candidate "
                    "(not with --max-total).")
 @click.option("--abs-width", type=float,
-              help="Absolute half-width (floor); with --dt each segment takes the larger.")
+              help="Absolute half-width (floor: the noise level, in the data's units); "
+                   "with --dt each segment takes the larger.")
 @click.option("--floor-rel", type=float,
               help="Absolute half-width per channel as a fraction of the channel's maximum.")
 @click.option("--cosine", is_flag=True, help="Fit BRDF x cos(theta_l); evaluation undoes it.")

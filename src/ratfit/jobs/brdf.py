@@ -317,7 +317,7 @@ def _candidate_note(c: dict[str, Any]) -> str:
     if c.get("narrowed_floor_from"):
         got = (f"{c['coefficients']} coefficients" if c["verified"]
                else "no verified fit, not kept")
-        return f"floor {c['floor_rel']:g}: {got}"
+        return f"floor {c['floor']:g}: {got}"
     if c.get("widened_from"):
         got = (f"{c['coefficients']} coefficients" if c["verified"] else
                "no candidate either" if c.get("no_candidate") else "no verified fit")
@@ -350,6 +350,14 @@ def _widths_note(widths: dict[str, Any]) -> str:
     if widths.get("narrowed_floor_from"):
         why += (f"; floor narrowed from {widths['narrowed_floor_from']:g}: the fit "
                 "there was small and most samples lay under the floor")
-    return (f"segments: y +- {widths['dt']:.3g} y with a floor of "
-            f"{widths['floor_rel']:g} x the channel's largest value (default{why}; "
+    if widths.get("channel_dt"):
+        why += ("; per channel " + " / ".join(f"{w:.3g}" for w in widths["channel_dt"])
+                + ": a channel with no candidate was widened alone")
+    if widths.get("merged"):
+        why += (f"; {widths['merged']} samples widened to the hull of a nearby sample's "
+                "segment that theirs did not overlap (one point measured twice)")
+    floor = widths.get("abs_width")
+    floor_text = (f"an absolute floor of {floor:g} (the noise level)" if floor is not None
+                  else f"a floor of {widths['floor_rel']:g} x the channel's largest value")
+    return (f"segments: y +- {widths['dt']:.3g} y with {floor_text} (default{why}; "
             "--dt, --abs-width, --floor-rel override)")

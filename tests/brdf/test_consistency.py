@@ -1,0 +1,86 @@
+"""Default segments describe the measurement: samples at nearly the same point whose
+segments are disjoint get the hull of the two; a user's segments are never changed."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from ratfit.brdf.consistency import CONSISTENT_NEAR, consistent_segments
+from ratfit.brdf.fitter import HALF_VECTOR, brdf_segments, fit_brdf, nonnegative_segments
+from ratfit.brdf.io import brdf_dataset
+from ratfit.core.segments import Segments
+
+
+def test_disjoint_neighbours_get_their_hull_and_nothing_else_moves() -> None:
+    x = np.array([[0.0, 0.0], [0.005, 0.0], [1.0, 1.0], [0.5, 0.5], [0.505, 0.5]])
+    y = np.array([[1.0], [2.0], [1.0], [1.0], [1.05]])
+    seg = Segments.from_widths(x, y, dt=0.1)
+    out, n = consistent_segments(seg)
+    assert n == 2  # rows 0 and 1: [0.9, 1.1] and [1.8, 2.2] are disjoint
+    assert out.lo[0, 0] == out.lo[1, 0] == 0.9 and out.hi[0, 0] == out.hi[1, 0] == 2.2
+    # rows 3 and 4 are as close but overlap; row 2 has no neighbour: unchanged
+    assert np.array_equal(out.lo[2:], seg.lo[2:]) and np.array_equal(out.hi[2:], seg.hi[2:])
+    assert np.array_equal(out.center, seg.center)  # the data are the data
+    # farther apart than CONSISTENT_NEAR (axes scaled to [0, 1]): left alone
+    far = x.copy()
+    far[1, 0] = 2.5 * CONSISTENT_NEAR
+    same, n_far = consistent_segments(Segments.from_widths(far, y, dt=0.1))
+    assert n_far == 0 and np.array_equal(same.lo, Segments.from_widths(far, y, dt=0.1).lo)
+
+
+def test_a_chain_of_disjoint_neighbours_ends_consistent_in_one_pass() -> None:
+    x = np.array([[0.0], [0.01], [0.025], [1.0]])
+    y = np.array([[1.0], [3.0], [9.0], [1.0]])
+    seg = Segments.from_widths(x, y, dt=0.05)
+    out, n = consistent_segments(seg)
+    assert n == 3
+    # nearest neighbours: 0 <-> 1, 2 -> 1; 1 takes the union of both hulls
+    assert np.allclose([out.lo[1, 0], out.hi[1, 0]], [0.95, 9.45], rtol=1e-15)
+    assert np.allclose([out.lo[0, 0], out.hi[0, 0]], [0.95, 3.15], rtol=1e-15)
+    assert np.allclose([out.lo[2, 0], out.hi[2, 0]], [2.85, 9.45], rtol=1e-15)
+    again, n_again = consistent_segments(out)
+    assert n_again == 0 and np.array_equal(again.lo, out.lo)
+
+
+def test_garnet_red_noise_level_segments_are_made_consistent(shared_data: Path) -> None:
+    """garnet_red in the half-vector frame at +-6 % with a 1e-3 1/sr floor: some samples
+    conflict with their nearest neighbour (at 80 degrees the light and the viewer nearly
+    exchanged give values 10x apart); only those are widened, and a user's --dt segments
+    are left as given."""
+    ds = brdf_dataset(shared_data / "cornell" / "garnet_red.brdf", HALF_VECTOR)
+    seg = brdf_segments(ds, dt=0.06, abs_width=1e-3)
+    out, n = consistent_segments(seg)
+    assert 0 < n < 0.2 * ds.n_points
+    again, n_again = consistent_segments(out)
+    assert n_again == 0 and np.array_equal(again.lo, out.lo)
+    # the fit records how many it widened; a user's widths are the user's
+    _, user_seg, meta = fit_brdf(ds, dt=0.1, abs_width=1e-3, max_total=2, polish=False)
+    assert meta["segments"]["merged"] == 0
+    given = nonnegative_segments(brdf_segments(ds, dt=0.1, abs_width=1e-3))
+    assert np.array_equal(user_seg.lo, given.lo) and np.array_equal(user_seg.hi, given.hi)
+
+
+def test_a_channel_with_no_candidate_is_widened_alone() -> None:
+    """Default widths of a table: channel b has one point measured twice, 1.0 and 1.2 (disjoint at
+    +-5 %), so it has no candidate; it is refitted alone at 0.08, then 0.12, where the
+    two overlap, while channel a keeps its fit at 0.05."""
+    from ratfit.io.data import Dataset
+
+    g = np.linspace(0.0, 1.0, 6)
+    x = np.stack([c.ravel() for c in np.meshgrid(g, g)], axis=1)
+    x = np.concatenate([x, x[:10], x[20:21]])  # ten repeats with equal values, one not
+    a = 1.0 + 0.5 * x[:, 0]
+    b = 1.0 + 0.0 * x[:, 0]
+    b[-1] = 1.2
+    ds = Dataset(x, np.stack([a, b], axis=1), None, None, ("u", "v"), ("a", "b"),
+                 {"param_in": "UNKNOWN", "format": "merl"})  # a table: noise-level floor
+    fitter, seg, meta = fit_brdf(ds, consistent=False, polish=False)
+    assert meta["segments"]["dt"] == 0.05
+    assert meta["segments"]["channel_dt"] == [0.05, 0.12]
+    assert fitter.success_ and "widened to +- 0.12 y for this channel alone" in \
+        fitter.results_[1].message
+    # the widened channel's segments are in the returned segments; a's are as they were
+    assert np.isclose(seg.hi[-1, 1], 1.2 * 1.12) and np.isclose(seg.hi[0, 0], 1.05 * a[0])
+    assert fitter.results_[0].n + fitter.results_[0].m <= 3
