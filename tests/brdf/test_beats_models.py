@@ -77,7 +77,6 @@ def test_default_width_follows_what_the_data_needs(shared_data: Path) -> None:
     x = np.array([[0.0, 0.0], [1e-4, 0.0], [1.0, 1.0], [0.5, 0.2]])
     y = np.array([1.0, 1.5, 1.0, 1.0])
     dt = default_dt(x, y, floor=0.0)
-    assert default_dt(x, y, floor=0.0, quantile=0.0) == DEFAULT_DT  # the typical pair: none
     assert dt == 0.22  # 1.1 x |1.5 - 1.0| / (1.5 + 1.0)
     assert (1 + dt) * 1.0 >= (1 - dt) * 1.5
 

@@ -48,9 +48,27 @@ def test_relative_polish_keeps_the_diffuse_part_closer_to_the_data():
 
 
 def test_polish_error_is_checked_and_offered_on_the_command_line(tmp_path):
-    assert BRDFFitter().options().polish_error == "relative"
+    assert BRDFFitter().options().polish_error == "auto"
     with pytest.raises(InputError, match="polish_error"):
         BRDFFitter(polish_error="log").options()
     res = CliRunner().invoke(main, ["brdf", "fit", str(tmp_path / "x.brdf"),
                                     "--polish-error", "log"])
     assert res.exit_code == 2 and "--polish-error" in res.output
+
+
+def test_auto_polish_is_relative_only_under_an_absolute_floor():
+    """"auto" (the default): relative errors where the segments have a noise-level floor
+    (--abs-width, a MERL table's default), plain ones under a floor that is a fraction of
+    the peak; the fit file records which ran."""
+    g = np.linspace(0.0, 1.0, 5)
+    x = np.stack([c.ravel() for c in np.meshgrid(g, g)], axis=1)
+    y = (0.01 + np.exp(-8.0 * x[:, 0]))[:, None]
+    ds = Dataset(x, y, None, None, ("u", "v"), ("a",), {"param_in": "UNKNOWN"})
+    runs = {}
+    for kw in ({"dt": 0.05, "abs_width": 1e-3}, {"dt": 0.05, "floor_rel": 0.002},
+               {"dt": 0.05, "abs_width": 1e-3, "polish_error": "absolute"}):
+        _, _, meta = fit_brdf(ds, max_total=12, **kw)
+        runs[tuple(sorted(kw))] = meta["polish_error"]
+    assert runs[("abs_width", "dt")] == "relative"
+    assert runs[("dt", "floor_rel")] == "absolute"
+    assert runs[("abs_width", "dt", "polish_error")] == "absolute"

@@ -330,6 +330,10 @@ def fit_brdf(ds: Dataset, *, dt: float | None = None, abs_width: float | None = 
     consistent = default_widths and is_table(ds) if consistent is None else consistent
     if consistent:
         seg, merged = consistent_segments(seg)
+    if fitter_params.get("polish_error", "auto") == "auto":
+        # relative errors mean something where small values have a noise-level floor
+        fitter_params = {**fitter_params,
+                         "polish_error": "relative" if abs_width is not None else "absolute"}
     known = find_parametrization(str(ds.meta.get("param_in", UNKNOWN_PARAMETRIZATION)))
     fitter = BRDFFitter(parametrization=UNKNOWN_PARAMETRIZATION if known is None else known.name,
                         positive_q=bool(positive_q),
@@ -700,10 +704,12 @@ class BRDFFitter(RationalFitter):
         in QP solves (:data:`POLISH_WORK_SHARE`), and a quarter of a ``time_limit``
         when one is given; when that runs out it keeps the search's fit, saying so
         in the message.
-    polish_error : {"absolute", "relative"}, default "relative"
+    polish_error : {"auto", "absolute", "relative"}, default "auto"
         What the polish minimises: the plain squared errors, or the squared errors
         relative to |y| + 1e-3 1/sr (:data:`~ratfit.brdf.options.NOISE_FLOOR`), so that
-        a diffuse part far below the peak counts as much as the peak.
+        a diffuse part far below the peak counts as much as the peak. "auto": relative
+        when :func:`fit_brdf`'s segments have an absolute floor, else absolute (a fitter
+        given segments directly: absolute).
     used_coords : tuple of int, optional
         The coordinates of the parametrization that the segments' x holds, in
         order (None: all); :func:`fit_brdf` drops constant ones (Cornell's
@@ -740,7 +746,7 @@ class BRDFFitter(RationalFitter):
 
     def __init__(self, *, parametrization: str = UNKNOWN_PARAMETRIZATION,
                  positive_q: bool = False, physical: bool = True, polish: bool = True,
-                 polish_error: str = "relative",
+                 polish_error: str = "auto",
                  used_coords: tuple[int, ...] | None = None,
                  solver: str = BRDF_SOLVER, time_limit: float | None = DEFAULT_TIME_LIMIT,
                  **params: Any) -> None:
@@ -947,7 +953,7 @@ class BRDFFitter(RationalFitter):
     def _polish_weights(self, seg: Segments, j: int) -> Array | None:
         """Each sample's weight in the polish: 1/(|y| + NOISE_FLOOR) for the relative
         error, None (all 1) for the absolute one."""
-        if self.polish_error == "absolute":
+        if self.polish_error != "relative":
             return None
         return 1.0 / (np.abs(seg.center[:, j]) + NOISE_FLOOR)
 
@@ -991,7 +997,7 @@ class BRDFFitter(RationalFitter):
         y = seg.center[:, j]
         w = self._polish_weights(seg, j)
         w = np.ones_like(y) if w is None else w
-        what = "RMSE" if self.polish_error == "absolute" else "relative RMSE"
+        what = "relative RMSE" if self.polish_error == "relative" else "RMSE"
 
         def score(r: RationalFunction) -> float:
             with np.errstate(all="ignore"):

@@ -29,11 +29,14 @@ BRDF_SOLVER = first_available(("daqp", "quadprog"))
 #: Cornell's diffuse values of glossy paints lie at 3e-3..5e-2 1/sr, 1e-4 of their peak.
 NOISE_FLOOR = 1e-3
 #: What the least-squares polish minimises: "relative" the sum of ((f - y)/(|y| + e))^2,
-#: e = :data:`NOISE_FLOOR` (the default), "absolute" the sum of (f - y)^2. With segments
-#: floored at the noise level, the relative polish gives garnet_red's diffuse samples
-#: (theta_h > 0.3) a median fit/data of R/G/B 0.97/1.04/0.97, the absolute one
-#: 0.97/1.22/0.88 (2026-11-26, dt 0.1, floor 2e-3, RUSIN_TH_TD_PD).
-POLISH_ERRORS = ("absolute", "relative")
+#: e = :data:`NOISE_FLOOR`, "absolute" the sum of (f - y)^2, "auto" (the default) the
+#: relative one when the segments have an absolute floor (a noise level: a MERL table's
+#: default, or ``--abs-width``), else the absolute one. Measured 2026-11-26: with a noise
+#: floor the relative polish gives garnet_red's diffuse samples (theta_h > 0.3) a median
+#: fit/data of R/G/B 0.97/1.04/0.97 against 0.97/1.22/0.88 (dt 0.1, floor 2e-3,
+#: RUSIN_TH_TD_PD); under a floor of 0.1 % of the peak it raises mystique B's RMSE from
+#: 0.059 to 0.78 at a peak of 591 and leaves garnet_red's diffuse colour as wrong.
+POLISH_ERRORS = ("auto", "absolute", "relative")
 #: The parametrization of coordinates no registry entry describes: the plain pole check.
 UNKNOWN_PARAMETRIZATION = "UNKNOWN"
 
@@ -72,8 +75,9 @@ BRDF_OPTIONS = extend_spec(
     Option("positive_q", "bool", False, "q > 0 on the valid grid inside the QP.", cli=False),
     Option("physical", "bool", True, "q > 0, p >= 0 on valid direction pairs.", cli=False),
     Option("polish", "bool", True, "Least-squares polish of each verified fit.", cli=False),
-    Option("polish_error", "choice", "relative",
-           "Error the polish minimises: relative (to |y| + 1e-3) or absolute.",
+    Option("polish_error", "choice", "auto",
+           "Error the polish minimises: relative (to |y| + 1e-3), absolute, or auto "
+           "(relative when the segments have an absolute floor).",
            POLISH_ERRORS, cli=False),
     Option("used_coords", "indices", None,
            "Coordinates of the parametrization the data holds (None: all).",
@@ -94,7 +98,7 @@ class BRDFOptions(FitOptions):
     positive_q: bool = False
     physical: bool = True
     polish: bool = True
-    polish_error: str = "relative"
+    polish_error: str = "auto"
     used_coords: tuple[int, ...] | None = None
 
 
