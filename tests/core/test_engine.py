@@ -391,7 +391,8 @@ def test_lp_margin_falls_back_to_interior_point_when_the_simplex_cycles(monkeypa
 
     monkeypatch.setattr(scipy.optimize, "linprog", linprog)
     c = qp._lp_margin(An)
-    assert calls == [("highs-ds", 2 * (40 + 4)), ("highs-ipm", qp.LP_IPM_ITERATIONS)]
+    assert calls == [("highs-ds", min(2 * (40 + 4), qp.LP_SIMPLEX_PER_COLUMN * 5)),
+                     ("highs-ipm", qp.LP_IPM_ITERATIONS)]
     assert c is not None and np.all(An @ c > 0.1)
     # both give up: no verdict, never "no point"
     monkeypatch.setattr(scipy.optimize, "linprog", lambda *a, **k: scipy.optimize.OptimizeResult(

@@ -628,6 +628,11 @@ def _cross_check(A: Array, kind: str, time_limit: float | None = None) -> Array 
 # acryl_blue's BRDF fit (4688 x 100 rows) ran on for more than 40 min once the fit had
 # no wall clock.
 LP_IPM_ITERATIONS = 500
+# The dual simplex's cap is also at most this many iterations per column: a BRDF split
+# with validity rows (11 532 x 100, acryl_blue) ran past 20 min toward its cap of 2 per
+# row and column (23 264), where the interior-point method takes a few iterations of a
+# 101 x 101 system.
+LP_SIMPLEX_PER_COLUMN = 50
 
 
 def _lp_margin(An: Array, time_limit: float | None = None) -> Array | None:
@@ -646,7 +651,8 @@ def _lp_margin(An: Array, time_limit: float | None = None) -> Array | None:
     cost[-1] = -1.0
     a_ub = np.hstack([-An, np.ones((rows, 1))])
     t0 = time.perf_counter()
-    for method, cap in (("highs-ds", 2 * (rows + k)), ("highs-ipm", LP_IPM_ITERATIONS)):
+    simplex_cap = min(2 * (rows + k), LP_SIMPLEX_PER_COLUMN * (k + 1))
+    for method, cap in (("highs-ds", simplex_cap), ("highs-ipm", LP_IPM_ITERATIONS)):
         # no presolve: on these dense LPs (thousands of rows, ~50 columns) it finds
         # nothing to remove and costs 15-20 % of the solve (same margins measured)
         opts: dict[str, float | bool] = {"presolve": False}
