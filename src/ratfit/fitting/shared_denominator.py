@@ -476,29 +476,51 @@ class _SharedSearch:
             raise _OutOfTime
         if self.cache and self.f.work_limit is not None and self._solves() >= self.f.work_limit:
             raise _OutOfTime
-        try:
-            q0 = shared_sk_denominator(self.space, self.seg, n, m)
-            system = SharedSystem(self.space, self.seg, n, m, q0)
-        except InputError as exc:
-            att = Attempt(sum(n), m, "failed", messages=[str(exc)])
-            trial = _Trial(n, m, att, None, None)
-        else:
-            # pole-free like a single channel: q > 0 rows where the shared q is not
-            att, _ = solve_pole_free(system, sum(n), m, cuts=self.cuts,
-                                     solver=self.f.solver, cross_check=self.f.cross_check)
-            att.formulation = "arnoldi-shared"
-            c = att.c if att.c is not None else att.raw_c
-            rats = vers = None
-            if c is not None:
-                rats = system.rationals(c)
-                vers = [verify(r, self.seg, channel=j) for j, r in enumerate(rats)]
-            trial = _Trial(n, m, att, rats, vers)
+        trial = self.solve(n, m)
+        att = trial.att
         att.seconds = time.perf_counter() - t0
         with self.lock:
             self.cache[key] = trial
         if self.f.callback is not None:
             self.f.callback(att)
         return trial
+
+    def solve(self, n: Sizes, m: int) -> _Trial:
+        """One QP P(n, m) and its verification, uncached (:meth:`test` caches it)."""
+        try:
+            att, rats = self.solve_system(n, m)
+        except InputError as exc:
+            att = Attempt(sum(n), m, "failed", messages=[str(exc)])
+            return _Trial(n, m, att, None, None)
+        vers = None if rats is None else self.verify_channels(rats)
+        return _Trial(n, m, att, rats, vers)
+
+    def solve_system(self, n: Sizes, m: int) -> tuple[Attempt, list[RationalFunction] | None]:
+        """The attempt at P(n, m) and its rationals (None without a solution); an
+        InputError when its bases cannot be built."""
+        q0 = shared_sk_denominator(self.space, self.seg, n, m)
+        system = self.system(n, m, q0)
+        # pole-free like a single channel: q > 0 rows where the shared q is not
+        att, _ = solve_pole_free(system, sum(n), m, cuts=self.cuts,
+                                 solver=self.f.solver, cross_check=self.f.cross_check)
+        att.formulation = "arnoldi-shared"
+        c = att.c if att.c is not None else att.raw_c
+        return att, None if c is None else self.shared_system(system).rationals(c)
+
+    def system(self, n: Sizes, m: int, q0: Array | None) -> Any:
+        """The row system of P(n, m) (a :class:`SharedSystem`; a subclass may add rows)."""
+        return SharedSystem(self.space, self.seg, n, m, q0)
+
+    @staticmethod
+    def shared_system(system: Any) -> SharedSystem:
+        """The :class:`SharedSystem` under rows a subclass appended."""
+        while not isinstance(system, SharedSystem):
+            system = system.base
+        return system
+
+    def verify_channels(self, rats: list[RationalFunction]) -> list[Verification]:
+        """Each channel's verification (a subclass may check more)."""
+        return [verify(r, self.seg, channel=j) for j, r in enumerate(rats)]
 
     def ok(self, n: Sizes, m: int) -> bool:
         return self.test(n, m).ok
