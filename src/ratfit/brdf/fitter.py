@@ -54,7 +54,7 @@ from ratfit.io.fitfile import SavedFit, fit_document, load_fit, save_fit
 
 __all__ = ["BRDF_SOLVER", "DEFAULT_DT", "DEFAULT_FLOOR_REL", "BRDFFit", "BRDFFitter",
            "HALF_VECTOR", "HALF_VECTOR_FLOOR_REL", "candidate_parametrizations",
-           "default_floor_rel", "brdf_metrics", "widened_dt", "brdf_segments",
+           "default_floor_rel", "brdf_metrics", "fit_coefficients", "widened_dt", "brdf_segments",
            "check_floor_rel", "cos_theta_l", "default_dt", "fit_brdf", "fit_brdf_auto",
            "alta_brdf_fit", "load_brdf_fit", "nonnegative_segments", "prepare_values",
            "resolve_widths",
@@ -293,6 +293,7 @@ def brdf_segments(
 def fit_brdf(ds: Dataset, *, dt: float | None = None, abs_width: float | None = None,
              floor_rel: float | None = None, cosine: bool = False, clamp: float | None = None,
              positive_q: bool = False, consistent: bool | None = None,
+             shared_denominator: bool = False,
              **fitter_params: Any):
     """Fit every channel of a BRDF dataset; returns (fitter, segments, brdf_meta).
 
@@ -302,7 +303,10 @@ def fit_brdf(ds: Dataset, *, dt: float | None = None, abs_width: float | None = 
     :data:`~ratfit.brdf.consistency.CONSISTENT_NEAR` of each other whose segments are
     disjoint get the hull of the two (:func:`~ratfit.brdf.consistency.consistent_segments`);
     None: when the widths are ratfit's defaults (segments a user gave are the user's).
-    ``brdf_meta`` is the ``"brdf"`` block of the fit file.
+    ``shared_denominator``: one q for every channel
+    (:class:`ratfit.brdf.shared.SharedBRDFFitter`; ``max_total`` then bounds each
+    numerator; no channel is widened alone). ``brdf_meta`` is the ``"brdf"`` block of
+    the fit file.
     """
     from ratfit.brdf.consistency import consistent_segments
     from ratfit.core.columns import constant_axes
@@ -335,14 +339,21 @@ def fit_brdf(ds: Dataset, *, dt: float | None = None, abs_width: float | None = 
         fitter_params = {**fitter_params,
                          "polish_error": "relative" if abs_width is not None else "absolute"}
     known = find_parametrization(str(ds.meta.get("param_in", UNKNOWN_PARAMETRIZATION)))
-    fitter = BRDFFitter(parametrization=UNKNOWN_PARAMETRIZATION if known is None else known.name,
-                        positive_q=bool(positive_q),
-                        used_coords=None if not dropped.size else tuple(int(k) for k in keep),
-                        **fitter_params)
+    frame = UNKNOWN_PARAMETRIZATION if known is None else known.name
+    used = None if not dropped.size else tuple(int(k) for k in keep)
+    fitter: Any
+    if shared_denominator:
+        from ratfit.brdf.shared import SharedBRDFFitter
+
+        fitter = SharedBRDFFitter(parametrization=frame, used_coords=used,
+                                  positive_q=bool(positive_q), **fitter_params)
+    else:
+        fitter = BRDFFitter(parametrization=frame, positive_q=bool(positive_q),
+                            used_coords=used, **fitter_params)
     fitter.fit(seg)
     channel_dt = None
     if (default_widths and dt is not None and seg.n_channels > 1
-            and fitter_params.get("max_total") is None):
+            and fitter_params.get("max_total") is None and not shared_denominator):
         # not under a size bound of the caller's (as in fit_brdf_auto's widening)
         seg, channel_dt = _widen_channels(fitter, seg, dt, abs_width, consistent)
         fitter.segments_ = seg
@@ -378,8 +389,31 @@ def fit_brdf(ds: Dataset, *, dt: float | None = None, abs_width: float | None = 
                      zip(fitter.validity_, fitter.proofs_, strict=True)],
         # the proof of q > 0 and p >= 0 where the fit is evaluated, per channel
         "proof": [None if v is None else v.to_dict() for v in fitter.proofs_],
+        # one q for every channel: each channel is stored as p_c / q with the same q
+        "shared_denominator": bool(shared_denominator),
     }
+    if shared_denominator:
+        meta["shared"] = _shared_block(fitter)
     return fitter, seg, meta
+
+
+def _shared_block(fitter: Any) -> dict[str, Any]:
+    """The sizes of a shared-denominator fit, its coefficients with q counted once and
+    as stored (q in every channel)."""
+    res = fitter.results_
+    return {"n": [int(r.n) for r in res], "m": int(res[0].m),
+            "coefficients": int(sum(r.n for r in res) + res[0].m),
+            "stored_coefficients": int(sum(r.n + r.m for r in res)),
+            "proven_minimal": bool(fitter.result_.proven)}
+
+
+def fit_coefficients(fitter: Any) -> int:
+    """The numbers a fit is made of: sum(n + m) over its channels, with a shared
+    denominator counted once (sum(n_c) + m)."""
+    res = fitter.results_
+    if getattr(fitter, "shared_denominator", False):
+        return int(sum(r.n for r in res) + res[0].m)
+    return int(sum(r.n + r.m for r in res))
 
 
 def _validity_line(check: Any, proof: Any) -> str | None:
@@ -514,7 +548,7 @@ def _tried(fitter: RationalFitter, meta: dict[str, Any], band: tuple[float, floa
     (dt, floor); ``coefficients`` over all channels when verified."""
     ok = bool(fitter.success_)
     return {"parametrization": meta["parametrization"], "verified": ok,
-            "coefficients": sum(r.n + r.m for r in fitter.results_) if ok else None,
+            "coefficients": fit_coefficients(fitter) if ok else None,
             "dt": band[0], "floor": band[1], "searched_up_to": searched_up_to, **extra}
 
 
@@ -1372,5 +1406,11 @@ def brdf_fit_of_saved(saved: SavedFit, path: str) -> BRDFFit:
             f"{path}: parametrization {p.name} has {p.dim} coordinates but the fit has "
             f"{saved.space.dim} inputs"
         )
+    if meta.get("shared_denominator") and any(
+            not np.array_equal(c.rational.q, saved.channels[0].rational.q)
+            for c in saved.channels):
+        raise FileFormatError(
+            f"{path}: 'brdf.shared_denominator' is true but the channels' denominators "
+            "differ: each channel of a shared fit is stored as p_c / q with the same q")
     return BRDFFit(saved, p.name, bool(meta.get("cosine_weighted", False)),
                    bool(meta.get("fold_phi_d", False)), dropped)

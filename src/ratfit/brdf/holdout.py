@@ -159,7 +159,7 @@ def cross_validate(datasets: Sequence[Dataset], k: int, *, seed: int = 0,
                    **fit_kw: Any) -> HoldoutResult:
     """K-fold held-out errors of :func:`~ratfit.brdf.fitter.fit_brdf_auto` with
     ``fit_kw`` on ``datasets`` (the same samples in each frame to try)."""
-    from ratfit.brdf.fitter import brdf_fit_of, fit_brdf_auto
+    from ratfit.brdf.fitter import brdf_fit_of, fit_brdf_auto, fit_coefficients
 
     if not datasets:
         raise InputError("cross_validate needs at least one dataset")
@@ -183,7 +183,7 @@ def cross_validate(datasets: Sequence[Dataset], k: int, *, seed: int = 0,
             pred[test] = fit.eval_coords(frame.x[test])
             seen[test] = True
             entry.update(parametrization=meta["parametrization"],
-                         coefficients=int(sum(r.n + r.m for r in fitter.results_)))
+                         coefficients=fit_coefficients(fitter))
         folds.append(entry)
     cl = _cos_l(datasets)
     metrics = holdout_metrics(pred[seen], y[seen], None if cl is None else cl[seen], names) \

@@ -94,17 +94,23 @@ def _split_channels(values: tuple[str, ...]) -> list[str]:
               help="What the polish minimises: plain squared errors, or errors relative "
                    "to |y| + 1e-3 1/sr (a diffuse part far below the peak counts as much "
                    "as the peak).")
+@click.option("--shared-denominator", "shared", is_flag=True,
+              help="One denominator q for every channel, one numerator p_c per channel: "
+                   "minimises sum(n_c) + m (--m fixes q's size, --max-total bounds each "
+                   "numerator). Each channel is verified and proved valid as p_c / q and "
+                   "stored that way; the fit is not polished.")
 @click.option("--json", "as_json", is_flag=True, help="Print one JSON object on stdout.")
 def brdf_fit(input_path: Path, output: Path | None, fmt: str | None, param: str | None,
              dt: float | None, abs_width: float | None, floor_rel: float | None, cosine: bool,
              clamp: float | None, positive_q: bool, channels: tuple[str, ...], color: str,
              max_points: int | None, holdout: int | None, no_polish: bool,
-             polish_error: str, as_json: bool, **options: Any) -> None:
+             polish_error: str, as_json: bool, shared: bool = False,
+             **options: Any) -> None:
     """Fit each channel of a measured BRDF with a verified rational function."""
     from ratfit.jobs import BRDFFitRequest, fit_brdf_file
 
     params = pop_fit_params(options)
-    check_size_flags(params)
+    check_size_flags(params, shared=shared)
     if max_points is not None and max_points < 2:
         raise click.UsageError("--max-points must be >= 2")
     if holdout is not None and holdout < 2:
@@ -114,7 +120,7 @@ def brdf_fit(input_path: Path, output: Path | None, fmt: str | None, param: str 
         "floor_rel": floor_rel, "cosine": cosine, "clamp": clamp, "positive_q": positive_q,
         "channels": _split_channels(channels), "color": color, "max_points": max_points,
         "holdout": holdout, "polish": not no_polish, "polish_error": polish_error,
-        "output": output})
+        "shared_denominator": shared, "output": output})
     cb, stop = _progress(True)  # stderr: JSON on stdout stays clean
     try:
         report = fit_brdf_file(request.with_progress(cb))
@@ -140,6 +146,11 @@ def _print_brdf_report(report: Any) -> None:
     seg, meta = report.segments, report.meta
     _print_report(report.results, report.written, verified_as="subset" if report.subset else None)
     click.echo(f"parametrization {report.parametrization}, {seg.n_points} samples")
+    sh = meta.get("shared")
+    if sh and report.success:
+        click.echo(f"shared denominator: one q (m = {sh['m']}) for {', '.join(seg.names)}, "
+                   f"n = {sh['n']}: {sh['coefficients']} coefficients with q counted once, "
+                   f"{sh['stored_coefficients']} stored (p_c / q per channel; not polished)")
     if report.subset and report.success:
         click.echo("status: " + str(report.status()))
     if meta.get("dropped_coords"):

@@ -648,6 +648,10 @@ _BRDF_FIELDS: dict[str, tuple[Any, str]] = {
     "validity": (_list_of(_opt(_is_str)), "a list of strings or nulls"),
     "proof": (_list_of(_opt(lambda v: isinstance(v, dict) and _is_bool(v.get("proved")))),
               "a list of nulls or objects with a true/false 'proved'"),
+    "shared_denominator": (_is_bool, "true or false"),
+    "shared": (_opt(lambda v: isinstance(v, dict) and _is_int(v.get("m"))
+                    and _is_int(v.get("coefficients"))),
+               "null or an object with integers 'm' and 'coefficients'"),
     "holdout": (lambda v: isinstance(v, dict) and _is_int(v.get("k"))
                 and isinstance(v.get("metrics"), dict),
                 "an object with an integer 'k' and per-channel 'metrics'"),

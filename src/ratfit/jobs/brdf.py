@@ -30,7 +30,7 @@ __all__ = ["BRDFFitReport", "BRDFFitRequest", "fit_brdf_file"]
 
 #: The request's own keys in a flat settings mapping (the rest are BRDF fit options).
 REQUEST_KEYS = ("format", "parametrization", "dt", "abs_width", "floor_rel", "cosine", "clamp",
-                "channels", "color", "max_points", "holdout", "output")
+                "channels", "color", "max_points", "holdout", "shared_denominator", "output")
 COLORS = ("rgb", "xyz", "spectral")
 # 6-D Cartesian pairs of an isotropic material (Cornell files): 3-D angles carry the
 # same information with no constant column and far fewer coefficients.
@@ -68,6 +68,11 @@ class BRDFFitRequest:
         K >= 2: also fit K times without one of K folds of the samples and record
         the held-out errors (:func:`ratfit.brdf.holdout.cross_validate`) in the
         report and the fit file.
+    shared_denominator : bool, default False
+        One q for every channel, one p_c per channel
+        (:class:`~ratfit.brdf.shared.SharedBRDFFitter`): the fewest numbers
+        sum(n_c) + m, each channel proved valid as p_c / q. ``max_total`` bounds
+        each numerator; ``n``, ``total`` and a single channel are refused.
     output : path, optional
         The fit file to write, only when every channel is verified.
     """
@@ -85,6 +90,7 @@ class BRDFFitRequest:
     color: str = "rgb"
     max_points: int | None = None
     holdout: int | None = None
+    shared_denominator: bool = False
     output: Path | None = None
 
     def __post_init__(self) -> None:
@@ -114,6 +120,26 @@ class BRDFFitRequest:
         fix(self, "color", check_choice(self.color, "color", COLORS))
         fix(self, "max_points", check_count(self.max_points, "max_points", 2))
         fix(self, "holdout", check_count(self.holdout, "holdout", 2))
+        fix(self, "shared_denominator", check_flag(self.shared_denominator,
+                                                   "shared_denominator"))
+        if self.shared_denominator:
+            self._check_shared()
+
+    def _check_shared(self) -> None:
+        """The combinations a shared denominator refuses, before the file is read."""
+        from ratfit.brdf.shared import SharedBRDFFitter
+
+        o = self.options
+        for key, flag in (("n", "--n"), ("total", "--total")):
+            if getattr(o, key) is not None:
+                raise InputError(f"--shared-denominator searches the numerator sizes itself: "
+                                 f"drop {flag} (--m fixes the shared denominator)")
+        if len(self.channels) == 1:
+            raise InputError(f"--shared-denominator needs at least two channels, got one "
+                             f"(--channel {self.channels[0]}): drop one of the two options")
+        # the rest (positive_q, search options a shared search has no use for)
+        SharedBRDFFitter(**{k: v for k, v in o.params().items()
+                            if k not in ("parametrization", "used_coords")}).options(3)
 
     @classmethod
     def from_settings(cls, input: str | Path, settings: Mapping[str, Any], *,
@@ -196,6 +222,9 @@ class BRDFFitReport:
         doc["metrics"] = self.metrics
         if self.holdout is not None:
             doc["holdout"] = self.holdout.to_dict()
+        doc["shared_denominator"] = bool(self.meta.get("shared_denominator"))
+        if self.meta.get("shared"):
+            doc["shared"] = dict(self.meta["shared"])
         return doc
 
     def notes(self) -> list[str]:
@@ -273,7 +302,8 @@ def fit_brdf_file(request: BRDFFitRequest | str | Path) -> BRDFFitReport:
         kw = {k: v for k, v in o.params().items() if k not in ("parametrization", "used_coords")}
         fitter, seg, meta = fit_brdf_auto(datasets, dt=req.dt, abs_width=req.abs_width,
                                           floor_rel=req.floor_rel, cosine=req.cosine,
-                                          clamp=req.clamp, **kw)
+                                          clamp=req.clamp,
+                                          shared_denominator=req.shared_denominator, **kw)
     ds = next(d for d in datasets if d.meta.get("param_in") == meta["parametrization"])
     report = BRDFFitReport(req, fitter.results_, seg, meta, digest, own, len(datasets),
                            subset=ds.meta.get("subset"))
@@ -283,7 +313,8 @@ def fit_brdf_file(request: BRDFFitRequest | str | Path) -> BRDFFitReport:
         with clock.phase("holdout"):
             report.holdout = cross_validate(datasets, req.holdout, dt=req.dt,
                                             abs_width=req.abs_width, floor_rel=req.floor_rel,
-                                            cosine=req.cosine, clamp=req.clamp, **kw)
+                                            cosine=req.cosine, clamp=req.clamp,
+                                            shared_denominator=req.shared_denominator, **kw)
         meta["holdout"] = report.holdout.to_dict()
     if report.success:
         with clock.phase("metrics"):
