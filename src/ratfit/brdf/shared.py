@@ -102,24 +102,28 @@ class _BRDFSharedSearch(_SharedSearch):
             self.grid = None
 
     def _walk(self) -> None:
-        """The sizes, searched in two steps so that no QP is larger than a fit already
-        found needs (a BRDF channel at m = 1..3 needs numerators of 60 and more: QPs of
-        180 unknowns, seconds each, and no fit better than the diagonal's):
+        """The sizes, searched so that no QP is larger than a fit already found needs
+        (garnet_red, 1439 samples: numerators of 56 per channel at m = 5, one QP of 169
+        unknowns a minute, and none fits):
 
         1. the diagonal: the smallest s with every n_c = m = s verified (doubling,
            then bisection), shrunk channel by channel: a first fit, of total T;
-        2. the walk over m of the generic search, each numerator bounded by
-           T - 1 - m - (K - 1) (a better fit needs no more): at each m, nothing when
-           the bound itself is infeasible, else the smallest n_c per channel with the
-           others at the bound, then the joint test, a repair and a shrink.
+        2. m = s - 1, s - 2, ... down, then s + 1, s + 2, ... up while m + K < T: each
+           numerator bounded by T - 1 - m - (K - 1) (a better fit needs no more), nothing
+           at m when that bound itself does not fit, else the smallest n_c per channel
+           with the others at the bound, the joint test, a repair and a shrink. Going
+           down stops at the first m where the bound does not fit (a lobe needs its
+           poles: fewer of them need more numerator than the bound left); the smaller
+           m are not tried, and the fit is then not proven minimal.
         """
         K, cap = self.K, self.cap
         if self.f.m is not None:
             super()._walk()
             return
+        top = min(cap, self.f.max_m)
         s = 1
-        while not self.ok((s,) * K, s) and s < min(cap, self.f.max_m):
-            s = min(2 * s, cap, self.f.max_m)
+        while not self.ok((s,) * K, s) and s < top:
+            s = min(2 * s, top)
         if not self.ok((s,) * K, s):
             return
         lo = s // 2 if s > 1 else 0  # known infeasible (or nothing)
@@ -129,31 +133,39 @@ class _BRDFSharedSearch(_SharedSearch):
                 s = mid
             else:
                 lo = mid
-        n = self._shrink((s,) * K, s)
-        self.best = (n, s)
-        best_total = sum(n) + s
-        prev: list[int] | None = None
-        for m in range(1, self.f.max_m + 1):
-            if m + K >= best_total or m > self.seg.n_points:
+        self.best = (self._shrink((s,) * K, s), s)
+        self.skipped_below = 0
+        for m in range(s - 1, 0, -1):
+            if not self._at(m):
+                self.skipped_below = m - 1  # m - 1 .. 1 not tried
                 break
-            big = min(cap, best_total - 1 - m - (K - 1))
-            if big < 1 or not self.ok((big,) * K, m):
-                prev = None
-                continue
-            self.big = max(self.big, big)
-            tops = [min(t, big) for t in prev] if prev else [big] * K
-            stars = [self._smallest(c, big, tops[c], m) for c in range(K)]
-            prev = list(stars)
-            bound = sum(stars) + m
-            self.bounds[m] = bound
-            if bound >= best_total:
-                continue
-            n = tuple(stars)
-            if not self.ok(n, m):
-                n = self._repair(n, m, big)
-            n = self._shrink(n, m)
-            if self.ok(n, m) and sum(n) + m < best_total:
-                self.best, best_total = (n, m), sum(n) + m
+        for m in range(s + 1, self.f.max_m + 1):
+            if m + K >= sum(self.best[0]) + self.best[1] or m > self.seg.n_points:
+                break
+            self._at(m)
+
+    def _at(self, m: int) -> bool:
+        """The best fit with q of size ``m`` that beats the one kept (kept if found);
+        False when the bound on the numerators itself does not fit at this m."""
+        K = self.K
+        assert self.best is not None
+        best_total = sum(self.best[0]) + self.best[1]
+        big = min(self.cap, best_total - 1 - m - (K - 1))
+        if big < 1 or not self.ok((big,) * K, m):
+            return False
+        self.big = max(self.big, big)
+        stars = [self._smallest(c, big, big, m) for c in range(K)]
+        bound = sum(stars) + m
+        self.bounds[m] = bound
+        if bound >= best_total:
+            return True
+        n = tuple(stars)
+        if not self.ok(n, m):
+            n = self._repair(n, m, big)
+        n = self._shrink(n, m)
+        if self.ok(n, m) and sum(n) + m < best_total:
+            self.best = (n, m)
+        return True
 
     def system(self, n: tuple[int, ...], m: int, q0: Array | None) -> Any:
         base = super().system(n, m, q0)
@@ -277,7 +289,8 @@ class SharedBRDFFitter:
                                                   "proof on every candidate")
             if out2.success:
                 fit, out = fit2, out2
-        self.result_ = replace(fit, proven=fit.proven and not self._rejected(search))
+        self.result_ = replace(fit, proven=fit.proven and not self._rejected(search)
+                               and not getattr(search, "skipped_below", 0))
         self.results_ = out.results
         checks, proofs = helper._checks, helper.__dict__.get("_proofs", {})
         self.validity_ = [checks.get(id(r.rational)) if r.rational is not None else None
