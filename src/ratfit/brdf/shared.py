@@ -49,12 +49,18 @@ from ratfit.fitting.shared_denominator import (
     _SharedSearch,
 )
 
-__all__ = ["PROOF_ROUNDS", "SharedBRDFFitter", "shared_valid_rows"]
+__all__ = ["PROOF_ROUNDS", "SHARED_MAX_M", "SHARED_MAX_N", "SharedBRDFFitter",
+           "shared_valid_rows"]
 
 Array = NDArray[np.float64]
 #: Times the chosen sizes are solved again with the points where the full proof (or
 #: the dense check) of a channel found q <= 0 or p_c < 0 added as rows.
 PROOF_ROUNDS = 4
+#: The largest numerator per channel (without ``max_total``) and the largest shared q:
+#: a shared q carries every channel's poles (garnet_red's own fits have m = 15, 17 and 22
+#: at the default segments; no shared fit with n_c = m <= 30 verified there).
+SHARED_MAX_N = 60
+SHARED_MAX_M = 60
 # Search options of the per-channel fit that the shared search has no use for: the
 # BRDF path's own (handled here) and the ones a shared search refuses unless default.
 _BRDF_ONLY = ("positive_q", "physical", "polish", "polish_error")
@@ -108,8 +114,8 @@ class _BRDFSharedSearch(_SharedSearch):
         at 20-60 s each, most feasible and so solved over many active-set rounds):
 
         1. the diagonal: the smallest s with every n_c = m = s verified (doubling,
-           then bisection), each numerator then lowered while the fit verifies
-           (:meth:`_shrink`): a first fit (n, s);
+           then bisection), each numerator then bisected down and lowered while
+           the fit verifies (:meth:`_lower`): a first fit (n, s);
         2. down: m = s - 1, s - 2, ... with the kept numerators, lowered again, while
            they still verify at that m (fewer poles, same numerators: a smaller total);
         3. up: m = s + 1, s + 2, ... from the kept numerators, lowered; while that beats
@@ -135,21 +141,37 @@ class _BRDFSharedSearch(_SharedSearch):
                 s = mid
             else:
                 lo = mid
-        self.best = best = (self._shrink((s,) * K, s), s)
+        self.best = best = (self._lower((s,) * K, s), s)
         for m in range(s - 1, 0, -1):
             if not self.ok(best[0], m):
                 break
-            best = (self._shrink(best[0], m), m)
+            best = (self._lower(best[0], m), m)
         self.best = best
         n0 = best[0]
         for m in range(s + 1, self.f.max_m + 1):
             if m + K >= sum(best[0]) + best[1] or not self.ok(n0, m):
                 break
-            n = self._shrink(n0, m)
+            n = self._lower(n0, m)
             if sum(n) + m >= sum(best[0]) + best[1]:
                 break
             best = (n, m)
         self.best = best
+
+    def _lower(self, n: tuple[int, ...], m: int) -> tuple[int, ...]:
+        """``n`` (verified at ``m``) with each numerator in turn bisected down to the
+        smallest that verifies with the others kept, then lowered one at a time while
+        that verifies (:meth:`_shrink`: verification need not be monotone)."""
+        cur = list(n)
+        for c in range(self.K):
+            lo, hi = 0, cur[c]  # 0 coefficients: nothing
+            while hi - lo > 1:
+                mid = (lo + hi) // 2
+                if self.ok(tuple(mid if j == c else v for j, v in enumerate(cur)), m):
+                    hi = mid
+                else:
+                    lo = mid
+            cur[c] = hi
+        return self._shrink(tuple(cur), m)
 
     def system(self, n: tuple[int, ...], m: int, q0: Array | None) -> Any:
         base = super().system(n, m, q0)
@@ -229,8 +251,8 @@ class SharedBRDFFitter:
         """The shared search's options for ``k`` channels (refusals as InputError)."""
         p = dict(self.params)
         top = p.pop("max_total", None)
-        if top is not None:
-            p["max_n"] = top
+        p["max_n"] = SHARED_MAX_N if top is None else top
+        p["max_m"] = SHARED_MAX_M
         for key in ("time_limit", "work_limit"):
             if p.get(key) is not None:
                 p[key] = k * p[key]
