@@ -238,7 +238,7 @@ class SharedBRDFFitter:
                                  f"drop {key} (m fixes the shared denominator)")
         self.parametrization = parametrization
         self.used_coords = used_coords
-        # a BRDF fit's defaults (its solver, its time limit), then what was given
+        # a BRDF fit's solver by default, then what was given
         self.params = {"solver": BRDF_SOLVER,
                        **{k: v for k, v in params.items() if k not in _BRDF_ONLY}}
         # the per-channel fitter whose verifier, validity grid and validity points the
