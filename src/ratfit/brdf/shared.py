@@ -49,13 +49,17 @@ from ratfit.fitting.shared_denominator import (
     _SharedSearch,
 )
 
-__all__ = ["PROOF_ROUNDS", "SHARED_MAX_M", "SHARED_MAX_N", "SharedBRDFFitter",
+__all__ = ["PROOF_ROUNDS", "SEARCH_ROUNDS", "SHARED_MAX_M", "SHARED_MAX_N", "SharedBRDFFitter",
            "shared_valid_rows"]
 
 Array = NDArray[np.float64]
 #: Times the chosen sizes are solved again with the points where the full proof (or
 #: the dense check) of a channel found q <= 0 or p_c < 0 added as rows.
 PROOF_ROUNDS = 4
+#: Times the search solves one size again with the points where its solution's validity
+#: check or proof found q <= 0 or p_c < 0 added as rows (a per-channel search solves
+#: such a candidate again and then repairs it by its polish, which a shared fit lacks).
+SEARCH_ROUNDS = 4
 #: The largest numerator per channel (without ``max_total``) and the largest shared q:
 #: a shared q carries every channel's poles (garnet_red's own fits have m = 15, 17 and 22
 #: at the default segments; no shared fit with n_c = m <= 30 verified there).
@@ -172,6 +176,31 @@ class _BRDFSharedSearch(_SharedSearch):
                     lo = mid
             cur[c] = hi
         return self._shrink(tuple(cur), m)
+
+    def solve(self, n: tuple[int, ...], m: int) -> Any:
+        """P(n, m) as the generic search solves it; where the solution meets every
+        segment but the validity check or proof found q <= 0 or p_c < 0 (those points
+        have joined the rows), solved again, at most :data:`SEARCH_ROUNDS` times: the
+        same size often has a valid fit once the QP sees where the last one failed."""
+        before = self._points()
+        trial = super().solve(n, m)
+        spent = trial.att.qp_solves
+        for _ in range(SEARCH_ROUNDS):
+            vers = trial.verifications
+            if (trial.ok or trial.rationals is None or vers is None
+                    or any(v.n_violations or not np.isfinite(v.linf) for v in vers)):
+                break
+            now = self._points()
+            if now == before:  # nothing new to constrain: the same QP, the same answer
+                break
+            before = now
+            trial = super().solve(n, m)
+            spent += trial.att.qp_solves
+            trial.att.qp_solves = spent
+        return trial
+
+    def _points(self) -> int:
+        return sum(len(e) for e in self.helper._extra)
 
     def system(self, n: tuple[int, ...], m: int, q0: Array | None) -> Any:
         base = super().system(n, m, q0)
