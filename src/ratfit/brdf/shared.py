@@ -328,6 +328,14 @@ class SharedBRDFFitter:
         self.result_ = replace(fit, proven=fit.proven and self.params.get("m") is not None
                                and not self._rejected(search))
         self.results_ = out.results
+        if not out.success and self._rejected(search):
+            # not "no candidate": QPs had solutions inside every segment that the validity
+            # check or proof rejected (what widening the segments is not for)
+            why = ("a candidate met every segment but none was proved valid "
+                   "(q > 0, p_c >= 0 on the valid direction pairs)")
+            self.results_ = [replace(r, status=2, message=f"{r.message}; {why}")
+                             if r.status == 1 and not r.time_limited else r
+                             for r in self.results_]
         checks, proofs = helper._checks, helper.__dict__.get("_proofs", {})
         self.validity_ = [checks.get(id(r.rational)) if r.rational is not None else None
                           for r in self.results_]
