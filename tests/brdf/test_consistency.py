@@ -72,7 +72,8 @@ def test_a_channel_with_no_candidate_is_widened_alone() -> None:
     x = np.stack([c.ravel() for c in np.meshgrid(g, g)], axis=1)
     x = np.concatenate([x, x[:10], x[20:21]])  # ten repeats with equal values, one not
     a = 1.0 + 0.5 * x[:, 0]
-    b = 1.0 + 0.0 * x[:, 0]
+    b = np.where(x[:, 1] > 0.9, 0.0, 1.0)  # measured zeros on one edge
+    b[20] = 1.0
     b[-1] = 1.2
     ds = Dataset(x, np.stack([a, b], axis=1), None, None, ("u", "v"), ("a", "b"),
                  {"param_in": "UNKNOWN", "format": "merl"})  # a table: noise-level floor
@@ -84,3 +85,7 @@ def test_a_channel_with_no_candidate_is_widened_alone() -> None:
     # the widened channel's segments are in the returned segments; a's are as they were
     assert np.isclose(seg.hi[-1, 1], 1.2 * 1.12) and np.isclose(seg.hi[0, 0], 1.05 * a[0])
     assert fitter.results_[0].n + fitter.results_[0].m <= 3
+    # the widened channel keeps its floor: measured zeros keep segments of nonzero width
+    zeros = b == 0.0
+    assert zeros.any() and np.allclose(seg.hi[zeros, 1], 1e-3)
+

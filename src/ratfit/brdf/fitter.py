@@ -355,7 +355,11 @@ def fit_brdf(ds: Dataset, *, dt: float | None = None, abs_width: float | None = 
     if (default_widths and dt is not None and seg.n_channels > 1
             and fitter_params.get("max_total") is None and not shared_denominator):
         # not under a size bound of the caller's (as in fit_brdf_auto's widening)
-        seg, channel_dt = _widen_channels(fitter, seg, dt, abs_width, consistent)
+        # each channel's absolute floor, as brdf_segments built it
+        top = np.abs(seg.center).max(axis=0)
+        floors = np.maximum(np.full(top.shape, 0.0 if abs_width is None else float(abs_width)),
+                            0.0 if floor_rel is None else float(floor_rel) * top)
+        seg, channel_dt = _widen_channels(fitter, seg, dt, floors, consistent)
         fitter.segments_ = seg
     sub = ds.meta.get("subset")
     if sub:
@@ -560,13 +564,14 @@ def _no_candidate(fitter: RationalFitter) -> bool:
     return bool(failed) and all(r.status == 1 and not r.time_limited for r in failed)
 
 
-def _widen_channels(fitter: BRDFFitter, seg: Segments, dt: float, floor: float | None,
+def _widen_channels(fitter: BRDFFitter, seg: Segments, dt: float, floors: Array,
                     consistent: bool = True) -> tuple[Segments, list[float] | None]:
     """Default widths: each channel whose search had no candidate at all (every split it
     tested infeasible, nothing cut short) is fitted again alone at :func:`widened_dt`
     widths until it has one, up to :data:`MAX_DEFAULT_DT`; the channels that verified
     keep their fits and their width. Returns the segments (each widened channel's column
-    replaced) and the width of each channel, or None when none was widened.
+    replaced) and the width of each channel, or None when none was widened. ``floors``:
+    each channel's absolute floor (from the noise level or the fraction of its peak).
 
     Measured noise differs by channel: garnet_red's R verifies at 0.06 with a 1e-3 floor
     while its G and B (noise 12-19 % of their diffuse values) have no candidate up to
@@ -581,7 +586,7 @@ def _widen_channels(fitter: BRDFFitter, seg: Segments, dt: float, floor: float |
         while (not res.success and res.status == 1 and not res.time_limited
                and d < MAX_DEFAULT_DT):
             d = widened_dt(d)
-            one = Segments.from_widths(seg.x, y[:, j:j + 1], dt=d, abs_width=floor,
+            one = Segments.from_widths(seg.x, y[:, j:j + 1], dt=d, abs_width=floors[j:j + 1],
                                        names=(seg.names[j],))
             one = nonnegative_segments(one)
             if consistent:
