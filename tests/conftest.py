@@ -79,3 +79,24 @@ def above_horizon(rng, n: int, z_min: float = 0.15):
     phi = rng.uniform(0.0, 2 * np.pi, n)
     s = np.sqrt(1 - z * z)
     return np.stack([s * np.cos(phi), s * np.sin(phi), z], axis=1)
+
+
+def lobe_on_sparse_grid():
+    """A specular lobe in cos(theta_h), 0.1 + 0.5 exp(-8 (1 - cos theta_h)), on a sparse
+    gonioreflectometer grid in ISOTROPIC_TV_TL_DPHI (elevations every 20 deg, azimuths
+    every 45: 125 samples, one channel R). ``from conftest import lobe_on_sparse_grid``."""
+    import numpy as np
+
+    from ratfit.brdf.parametrizations import get_parametrization
+    from ratfit.io.data import Dataset
+
+    param = "ISOTROPIC_TV_TL_DPHI"
+    th = np.radians([0, 20, 40, 60, 80])
+    ph = np.radians([0, 45, 90, 135, 180])
+    x = np.stack([g.ravel() for g in np.meshgrid(th, th, ph, indexing="ij")], axis=1)
+    L, V = get_parametrization(param).to_dirs(x)
+    h = L + V
+    c = h[:, 2] / np.linalg.norm(h, axis=1)
+    y = (0.1 + 0.5 * np.exp(-8 * (1 - c)))[:, None]
+    return Dataset(x, y, None, None, ("theta_v", "theta_l", "delta_phi"), ("R",),
+                   {"param_in": param})

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from conftest import lobe_on_sparse_grid
 
 from ratfit.brdf.fitter import BRDFFitter, fit_brdf, nonnegative_segments
 from ratfit.brdf.parametrizations import get_parametrization
@@ -38,17 +39,6 @@ def _candidate(p_poly, q_poly) -> tuple[RationalFunction, Segments]:
     rf = RationalFunction(space, p, q)
     y = rf(x)
     return rf, Segments.from_bounds(x, y - 0.05 * np.abs(y) - 1e-3, y + 0.05 * np.abs(y) + 1e-3, y)
-
-
-def _lobe_on_sparse_grid() -> Dataset:
-    """A specular lobe (in cos theta_h) measured on :func:`_samples`."""
-    x = _samples()
-    L, V = get_parametrization(P).to_dirs(x)
-    h = L + V
-    c = h[:, 2] / np.linalg.norm(h, axis=1)
-    y = (0.1 + 0.5 * np.exp(-8 * (1 - c)))[:, None]
-    return Dataset(x, y, None, None, ("theta_v", "theta_l", "delta_phi"), ("R",),
-                   {"param_in": P})
 
 
 def _fitter() -> BRDFFitter:
@@ -102,7 +92,7 @@ def test_segments_never_allow_negative_values() -> None:
 def test_fit_is_physical_where_the_data_is_sparse() -> None:
     """A lobe measured on the sparse grid: the verified fit keeps q > 0 and r >= 0 on
     the dense valid set, not only at the 125 samples."""
-    ds = _lobe_on_sparse_grid()
+    ds = lobe_on_sparse_grid()
     fitter, seg, _ = fit_brdf(ds, dt=0.1, max_total=30)
     assert fitter.success_, fitter.result_.message
     chk = fitter.validity_[0]
@@ -141,7 +131,7 @@ def test_polish_past_the_time_limit_keeps_the_search_fit(monkeypatch) -> None:
     and the message says the polish was cut."""
     import time
 
-    ds = _lobe_on_sparse_grid()
+    ds = lobe_on_sparse_grid()
     polished, seg, _ = fit_brdf(ds, dt=0.1, max_total=30)
     assert "least-squares polish: RMSE" in polished.result_.message  # dt alone: absolute
     monkeypatch.setattr(BRDFFitter, "_polish_deadline", lambda self: time.perf_counter() - 1.0)

@@ -10,33 +10,19 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
+from conftest import lobe_on_sparse_grid
 
 import ratfit.brdf.fitter as F
 from ratfit.brdf.fitter import BRDFFitter, fit_brdf
 from ratfit.brdf.options import BRDFOptions
-from ratfit.brdf.parametrizations import get_parametrization
 from ratfit.core.options import DEFAULT_WORK_LIMIT
-from ratfit.io.data import Dataset
 
 P = "ISOTROPIC_TV_TL_DPHI"
 DEG = np.pi / 180
 
 
-def _lobe() -> Dataset:
-    """A specular lobe on a sparse gonioreflectometer grid (125 samples)."""
-    th = np.array([0, 20, 40, 60, 80]) * DEG
-    ph = np.array([0, 45, 90, 135, 180]) * DEG
-    x = np.stack([g.ravel() for g in np.meshgrid(th, th, ph, indexing="ij")], axis=1)
-    L, V = get_parametrization(P).to_dirs(x)
-    h = L + V
-    c = h[:, 2] / np.linalg.norm(h, axis=1)
-    y = (0.1 + 0.5 * np.exp(-8 * (1 - c)))[:, None]
-    return Dataset(x, y, None, None, ("theta_v", "theta_l", "delta_phi"), ("R",),
-                   {"param_in": P})
-
-
 def _fit(**kw):
-    fitter, _, _ = fit_brdf(_lobe(), dt=0.1, max_total=30, **kw)
+    fitter, _, _ = fit_brdf(lobe_on_sparse_grid(), dt=0.1, max_total=30, **kw)
     return fitter
 
 
