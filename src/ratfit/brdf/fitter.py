@@ -280,14 +280,21 @@ def brdf_segments(
         return ds.segments()
     y = prepare_values(ds, cosine=cosine, clamp=clamp)
     floor_rel = check_width(floor_rel, "floor_rel")
-    w = None
-    if abs_width is not None or floor_rel is not None:
-        w = np.zeros(y.shape[1])
-        if abs_width is not None:
-            w = np.maximum(w, check_width(abs_width, "abs_width"))
-        if floor_rel is not None:
-            w = np.maximum(w, floor_rel * np.abs(y).max(axis=0))
+    w = channel_floors(y, abs_width, floor_rel)
     return Segments.from_widths(ds.x, y, dt=dt, abs_width=w, names=ds.output_names)
+
+
+def channel_floors(y: Array, abs_width: float | None, floor_rel: float | None) -> Array | None:
+    """Each channel's absolute floor: the larger of ``abs_width`` and ``floor_rel`` times
+    the channel's largest |y| (None without either)."""
+    if abs_width is None and floor_rel is None:
+        return None
+    w = np.zeros(y.shape[1])
+    if abs_width is not None:
+        w = np.maximum(w, check_width(abs_width, "abs_width"))
+    if floor_rel is not None:
+        w = np.maximum(w, floor_rel * np.abs(y).max(axis=0))
+    return w
 
 
 def fit_brdf(ds: Dataset, *, dt: float | None = None, abs_width: float | None = None,
@@ -355,10 +362,7 @@ def fit_brdf(ds: Dataset, *, dt: float | None = None, abs_width: float | None = 
     if (default_widths and dt is not None and seg.n_channels > 1
             and fitter_params.get("max_total") is None and not shared_denominator):
         # not under a size bound of the caller's (as in fit_brdf_auto's widening)
-        # each channel's absolute floor, as brdf_segments built it
-        top = np.abs(seg.center).max(axis=0)
-        floors = np.maximum(np.full(top.shape, 0.0 if abs_width is None else float(abs_width)),
-                            0.0 if floor_rel is None else float(floor_rel) * top)
+        floors = channel_floors(seg.center, abs_width, floor_rel)
         seg, channel_dt = _widen_channels(fitter, seg, dt, floors, consistent)
         fitter.segments_ = seg
     sub = ds.meta.get("subset")
@@ -406,7 +410,7 @@ def _shared_block(fitter: Any) -> dict[str, Any]:
     as stored (q in every channel)."""
     res = fitter.results_
     return {"n": [int(r.n) for r in res], "m": int(res[0].m),
-            "coefficients": int(sum(r.n for r in res) + res[0].m),
+            "coefficients": fit_coefficients(fitter),
             "stored_coefficients": int(sum(r.n + r.m for r in res)),
             "proven_minimal": bool(fitter.result_.proven)}
 
@@ -443,7 +447,14 @@ def _band(ds: Dataset, kw: dict[str, Any]) -> tuple[float, float]:
     dt, absw, floor_rel, _ = resolve_widths(ds, kw.get("dt"), kw.get("abs_width"),
                                             kw.get("floor_rel"), cosine=bool(kw.get("cosine")),
                                             clamp=kw.get("clamp"))
-    return float(dt or 0.0), float(absw if absw is not None else floor_rel or 0.0)
+    return _band_of(dt, absw, floor_rel)
+
+
+def _band_of(dt: float | None, abs_width: float | None,
+             floor_rel: float | None) -> tuple[float, float]:
+    """(dt, floor) of segments of these widths: the floor is the absolute width when
+    there is one, else the fraction of the peak."""
+    return float(dt or 0.0), float(abs_width if abs_width is not None else floor_rel or 0.0)
 
 
 def fit_brdf_auto(datasets: list[Dataset], **kw: Any):
@@ -493,8 +504,7 @@ def fit_brdf_auto(datasets: list[Dataset], **kw: Any):
                 opts["max_total"] = min(cap, int(kw.get("max_total") or cap))
         fitter, seg, meta = fit_brdf(ds, **opts)
         segs = meta["segments"]
-        band = float(segs["dt"] or 0.0), float(segs["abs_width"] if segs["abs_width"] is not None
-                                               else segs["floor_rel"] or 0.0)
+        band = _band_of(segs["dt"], segs["abs_width"], segs["floor_rel"])
         # a channel widened alone (fit_brdf) went as far as the ladder would
         entry = _tried(fitter, meta, band, opts.get("max_total"),
                        no_candidate=_no_candidate(fitter)
@@ -564,7 +574,7 @@ def _no_candidate(fitter: RationalFitter) -> bool:
     return bool(failed) and all(r.status == 1 and not r.time_limited for r in failed)
 
 
-def _widen_channels(fitter: BRDFFitter, seg: Segments, dt: float, floors: Array,
+def _widen_channels(fitter: BRDFFitter, seg: Segments, dt: float, floors: Array | None,
                     consistent: bool = True) -> tuple[Segments, list[float] | None]:
     """Default widths: each channel whose search had no candidate at all (every split it
     tested infeasible, nothing cut short) is fitted again alone at :func:`widened_dt`
@@ -586,7 +596,8 @@ def _widen_channels(fitter: BRDFFitter, seg: Segments, dt: float, floors: Array,
         while (not res.success and res.status == 1 and not res.time_limited
                and d < MAX_DEFAULT_DT):
             d = widened_dt(d)
-            one = Segments.from_widths(seg.x, y[:, j:j + 1], dt=d, abs_width=floors[j:j + 1],
+            one = Segments.from_widths(seg.x, y[:, j:j + 1], dt=d,
+                                       abs_width=None if floors is None else floors[j:j + 1],
                                        names=(seg.names[j],))
             one = nonnegative_segments(one)
             if consistent:
@@ -625,7 +636,6 @@ def _widen(ds: Dataset, tried: list[dict[str, Any]], kw: dict[str, Any],
     if first is None or not first.get("no_candidate"):
         return None
     dt, floor = float(first["dt"]), float(first["floor"])
-    floor_key = "abs_width" if is_table(ds) else "floor_rel"
     out = None
     steps: list[float] = []
     while dt < MAX_DEFAULT_DT:
@@ -633,8 +643,7 @@ def _widen(ds: Dataset, tried: list[dict[str, Any]], kw: dict[str, Any],
         new = widened_dt(dt)
         if beat is not None and (new, floor) > beat:
             break
-        f2, seg2, meta2 = fit_brdf(ds, **{**kw, "dt": new, floor_key: floor,
-                                          "consistent": is_table(ds)})
+        f2, seg2, meta2 = fit_brdf(ds, **{**kw, "dt": new, **_default_floor(ds, floor)})
         none = _no_candidate(f2)
         entry = _tried(f2, meta2, (new, floor), None, no_candidate=none, widened_from=dt)
         tried.append(entry)
@@ -646,6 +655,13 @@ def _widen(ds: Dataset, tried: list[dict[str, Any]], kw: dict[str, Any],
             break
         dt = new
     return out
+
+
+def _default_floor(ds: Dataset, floor: float) -> dict[str, Any]:
+    """The options of a default refit of ``ds`` at ``floor``: absolute and with
+    consistent segments for a table, a fraction of the peak for scattered data."""
+    table = is_table(ds)
+    return {"abs_width" if table else "floor_rel": floor, "consistent": table}
 
 
 def _floor_covers_most(seg: Segments, floor: float, relative: bool) -> bool:
@@ -669,9 +685,7 @@ def _narrow_floor(best: tuple, datasets: list[Dataset], tried: list[dict[str, An
                 or not band[1] or not _floor_covers_most(seg, band[1], not table)):
             break
         floor = band[1] / 2
-        f2, seg2, meta2 = fit_brdf(ds, **{**kw, "dt": band[0],
-                                          ("abs_width" if table else "floor_rel"): floor,
-                                          "consistent": table})
+        f2, seg2, meta2 = fit_brdf(ds, **{**kw, "dt": band[0], **_default_floor(ds, floor)})
         entry = _tried(f2, meta2, (band[0], floor), kw.get("max_total"),
                        narrowed_floor_from=band[1])
         tried.append(entry)
