@@ -72,6 +72,17 @@ def test_cross_validation_predicts_unseen_samples_of_a_smooth_material():
     assert doc["k"] == 4 and doc["folds_verified"] == 4 and doc["rel_floor"] == REL_FLOOR
 
 
+def test_folds_in_separate_processes_give_the_same_predictions():
+    # each fold's fit is bounded by counted work, not a clock: workers change nothing
+    ds = _smooth_material(90, seed=3)
+    one = cross_validate([ds], 3, dt=0.05, floor_rel=0.01, seed=2)
+    two = cross_validate([ds], 3, dt=0.05, floor_rel=0.01, seed=2, workers=2)
+    assert one.folds_verified == 3
+    assert one.folds == two.folds
+    assert np.array_equal(one.predictions, two.predictions, equal_nan=True)
+    assert one.metrics == two.metrics
+
+
 def test_cli_records_the_holdout_in_the_fit_file(tmp_path: Path, shared_data: Path):
     out = tmp_path / "fit.json"
     r = CliRunner().invoke(main, [

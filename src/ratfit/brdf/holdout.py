@@ -22,8 +22,8 @@ from ratfit.brdf.options import NOISE_FLOOR
 from ratfit.errors import InputError
 from ratfit.io.data import Dataset
 
-__all__ = ["REL_FLOOR", "WORST_SHARE", "HoldoutResult", "cross_validate", "fold_indices",
-           "holdout_metrics"]
+__all__ = ["REL_FLOOR", "WORST_SHARE", "HoldoutResult", "cross_validate", "fit_fold",
+           "fold_indices", "holdout_metrics", "pooled_result"]
 
 Array = NDArray[np.float64]
 #: e (1/sr) of the relative error log((f + e)/(y + e)): values far below it (the noise
@@ -155,37 +155,73 @@ def _cos_l(datasets: Sequence[Dataset]) -> Array | None:
     return None
 
 
-def cross_validate(datasets: Sequence[Dataset], k: int, *, seed: int = 0,
-                   **fit_kw: Any) -> HoldoutResult:
-    """K-fold held-out errors of :func:`~ratfit.brdf.fitter.fit_brdf_auto` with
-    ``fit_kw`` on ``datasets`` (the same samples in each frame to try)."""
+def fit_fold(datasets: Sequence[Dataset], test: NDArray[np.intp],
+             **fit_kw: Any) -> tuple[Array | None, dict[str, Any]]:
+    """One fold: :func:`~ratfit.brdf.fitter.fit_brdf_auto` with ``fit_kw`` on every
+    sample but ``test``; returns its predictions at ``test`` (None without a verified
+    fit) and the fold's entry (size, parametrization, coefficients). A function of
+    its arguments alone, so folds may run in separate processes."""
     from ratfit.brdf.fitter import brdf_fit_of, fit_brdf_auto, fit_coefficients
 
+    n = datasets[0].n_points
+    train = np.setdiff1d(np.arange(n), test)
+    fitter, _seg, meta = fit_brdf_auto([_rows(ds, train) for ds in datasets], **fit_kw)
+    entry: dict[str, Any] = {"held_out": int(test.size), "parametrization": None,
+                             "coefficients": None}
+    if not fitter.success_:
+        return None, entry
+    fit = brdf_fit_of(fitter.results_, meta)
+    frame = next(ds for ds in datasets
+                 if str(ds.meta.get("param_in")) == meta["parametrization"])
+    entry.update(parametrization=meta["parametrization"],
+                 coefficients=fit_coefficients(fitter))
+    return np.asarray(fit.eval_coords(frame.x[test]), dtype=float), entry
+
+
+def _check_frames(datasets: Sequence[Dataset]) -> None:
     if not datasets:
         raise InputError("cross_validate needs at least one dataset")
     n = datasets[0].n_points
     if any(ds.n_points != n or ds.y is None for ds in datasets):
         raise InputError("every frame must hold the same samples, with values")
+
+
+def pooled_result(datasets: Sequence[Dataset], k: int, seed: int,
+                  outcomes: Sequence[tuple[Array | None, dict[str, Any]]]) -> HoldoutResult:
+    """The :class:`HoldoutResult` of the ``k`` folds' :func:`fit_fold` outcomes, in
+    :func:`fold_indices` order."""
+    _check_frames(datasets)
+    n = datasets[0].n_points
     y = np.asarray(datasets[0].y, dtype=float)
     names = datasets[0].output_names or tuple(f"y{j}" for j in range(y.shape[1]))
     pred = np.full(y.shape, np.nan)
     seen = np.zeros(n, dtype=bool)  # predicted by a verified fold fit (non-finite stays in)
-    folds: list[dict[str, Any]] = []
-    for test in fold_indices(n, k, seed):
-        train = np.setdiff1d(np.arange(n), test)
-        fitter, _seg, meta = fit_brdf_auto([_rows(ds, train) for ds in datasets], **fit_kw)
-        entry: dict[str, Any] = {"held_out": int(test.size), "parametrization": None,
-                                 "coefficients": None}
-        if fitter.success_:
-            fit = brdf_fit_of(fitter.results_, meta)
-            frame = next(ds for ds in datasets
-                         if str(ds.meta.get("param_in")) == meta["parametrization"])
-            pred[test] = fit.eval_coords(frame.x[test])
+    for test, (p, _entry) in zip(fold_indices(n, k, seed), outcomes, strict=True):
+        if p is not None:
+            pred[test] = p
             seen[test] = True
-            entry.update(parametrization=meta["parametrization"],
-                         coefficients=fit_coefficients(fitter))
-        folds.append(entry)
     cl = _cos_l(datasets)
     metrics = holdout_metrics(pred[seen], y[seen], None if cl is None else cl[seen], names) \
         if seen.any() else {}
-    return HoldoutResult(int(k), int(seed), metrics, folds, int(seen.sum()), n, pred, y)
+    return HoldoutResult(int(k), int(seed), metrics, [e for _p, e in outcomes],
+                         int(seen.sum()), n, pred, y)
+
+
+def cross_validate(datasets: Sequence[Dataset], k: int, *, seed: int = 0,
+                   workers: int = 1, **fit_kw: Any) -> HoldoutResult:
+    """K-fold held-out errors of :func:`~ratfit.brdf.fitter.fit_brdf_auto` with
+    ``fit_kw`` on ``datasets`` (the same samples in each frame to try).
+
+    ``workers`` > 1 fits folds in that many processes; each fold's fit is bounded by
+    counted work, not a clock, so the result is the same for any ``workers``."""
+    _check_frames(datasets)
+    tests = fold_indices(datasets[0].n_points, k, seed)
+    if workers <= 1:
+        outcomes = [fit_fold(datasets, t, **fit_kw) for t in tests]
+    else:
+        from concurrent.futures import ProcessPoolExecutor
+
+        with ProcessPoolExecutor(max_workers=min(int(workers), len(tests))) as pool:
+            futures = [pool.submit(fit_fold, datasets, t, **fit_kw) for t in tests]
+            outcomes = [f.result() for f in futures]
+    return pooled_result(datasets, k, seed, outcomes)
