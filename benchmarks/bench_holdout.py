@@ -9,7 +9,7 @@ held-out RMSE, cos-weighted RMSE and relative RMSE (RMS of log((f + e)/(y + e)),
 e = 1e-3 1/sr) of the rational fit and of the better model for each metric, the
 fold fits' coefficient counts, and whether the rational fit wins all three.
 
-    python benchmarks/bench_holdout.py [--data DIR] [--only NAME] [--k 5] [--workers W]
+    python benchmarks/bench_holdout.py [--data DIR] [--only NAME ...] [--k 5] [--workers W]
 
 ``--workers W`` fits the folds (of every material at once) and the models in W
 processes; every fold fit is bounded by counted work, so the table is the same for
@@ -66,7 +66,8 @@ def _timed_fold(frames, test, jobs: int | None):
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--data", type=Path, default=REPO.parent / "shared" / "data")
-    ap.add_argument("--only", help="run the materials whose name contains this")
+    ap.add_argument("--only", nargs="+", metavar="NAME",
+                    help="run the materials whose name contains one of these")
     ap.add_argument("--k", type=int, default=5)
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--workers", type=int, default=1,
@@ -76,7 +77,7 @@ def main() -> None:
     rep = report(args, __file__)
     cmp = ModelComparison(METRICS, {"rmse": "RMSE", "cos_rmse": "cos RMSE",
                                     "rel_rmse": "rel. RMSE"})
-    names = [m for m in MATERIALS if not args.only or args.only in m]
+    names = [m for m in MATERIALS if not args.only or any(o in m for o in args.only)]
     frames = {}
     for name in names:
         samples = read_brdf(args.data / "cornell" / f"{name}.brdf")
