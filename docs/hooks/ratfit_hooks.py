@@ -17,8 +17,9 @@ def _commands(group: Any, path: list[str]) -> list[list[str]]:
 
     found = [path]
     if isinstance(group, click.Group):
-        for name in sorted(group.commands):
-            found += _commands(group.commands[name], path + [name])
+        ctx = click.Context(group)
+        for name in group.list_commands(ctx):  # its commands, modules imported on first use
+            found += _commands(group.get_command(ctx, name), path + [name])
     return found
 
 

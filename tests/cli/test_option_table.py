@@ -15,6 +15,7 @@ import re
 from pathlib import Path
 from typing import Any
 
+import click
 import numpy as np
 import pytest
 from conftest import run_cli, shared_data_dir
@@ -78,7 +79,7 @@ def _flags(mode: str) -> set[str]:
     for part in mode.split():
         if part.startswith("--"):
             break
-        cmd = cmd.commands[part]
+        cmd = cmd.get_command(click.Context(cmd), part)  # imports its module on first use
     return {p.name for p in cmd.params if p.name}
 
 

@@ -11,16 +11,19 @@ COMMANDS = ["batch", "brdf", "cdf", "demo", "eval", "export", "fit", "plot", "re
             "report", "sample", "tolerance"]
 SUBCOMMANDS = {"brdf": ["compare", "eval", "fit", "model"], "demo": ["addendum", "cdf"]}
 FIRST_IMPORTS = ["ratfit.cli.brdf", "ratfit.cli.export", "ratfit.cli.cdf", "ratfit.cli.batch",
-                 "ratfit.cli.tolerance", "ratfit.cli.main", "ratfit.cli.fit", "ratfit"]
+                 "ratfit.cli.demo", "ratfit.cli.tolerance", "ratfit.cli.main", "ratfit.cli.fit",
+                 "ratfit"]
 
 
 @pytest.mark.parametrize("first", FIRST_IMPORTS)
 @pytest.mark.slow
 def test_all_commands_registered_in_any_import_order(first: str) -> None:
-    code = (f"import importlib, json; importlib.import_module({first!r}); "
+    code = (f"import importlib, json, click; importlib.import_module({first!r}); "
             "from ratfit.cli import main; "
-            "print(json.dumps({k: sorted(getattr(v, 'commands', {})) "
-            "for k, v in main.commands.items()}))")
+            "ctx = click.Context(main); "
+            "cmds = {k: main.get_command(ctx, k) for k in main.list_commands(ctx)}; "
+            "print(json.dumps({k: [v.get_command(ctx, s).name for s in v.list_commands(ctx)] "
+            "if isinstance(v, click.Group) else [] for k, v in cmds.items()}))")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     import json
 

@@ -19,7 +19,7 @@ from ratfit.errors import InputError
 def _command(path: str) -> click.Command:
     cmd: click.Command = main
     for part in path.split():
-        cmd = cmd.commands[part]  # type: ignore[attr-defined]
+        cmd = cmd.get_command(click.Context(cmd), part)  # type: ignore[attr-defined]
     return cmd
 
 

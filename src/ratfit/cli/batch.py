@@ -7,13 +7,13 @@ from pathlib import Path
 
 import click
 
-from ratfit.cli.main import EXIT_NO_FIT, _write_json, console, fit_table, main
+from ratfit.cli.main import EXIT_NO_FIT, _write_json, console, fit_table
 from ratfit.cli.options import MAX_WORKERS, aliased_option
 
 EXIT_INTERRUPTED = 130
 
 
-@main.command("batch")
+@click.command("batch")
 @click.argument("manifest", type=click.Path(dir_okay=False, path_type=Path))
 @aliased_option("-o", "--output", "outdir", hidden=["--outdir"], required=True,
                 type=click.Path(file_okay=False, path_type=Path),

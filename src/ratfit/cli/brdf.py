@@ -12,18 +12,18 @@ import numpy as np
 from ratfit.brdf.options import BRDF_SOLVER, POLISH_ERRORS, BRDFOptions
 from ratfit.cli.main import (
     EXIT_NO_FIT,
+    LazyGroup,
     _print_report,
     _progress,
     _write_json,
     csv_line,
-    main,
     stdout_guard,
     trust_edited_option,
 )
 from ratfit.cli.options import aliased_option, check_size_flags, fit_options, pop_fit_params
 
 
-@main.group("brdf")
+@click.group("brdf", cls=LazyGroup, lazy={"compare": "ratfit.cli.export:compare_cmd"})
 def brdf_group() -> None:
     """Measured BRDFs: MERL, ALTA, Cornell/pbrt, ASTM and EXR files."""
 

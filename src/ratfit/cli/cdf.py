@@ -24,8 +24,6 @@ from ratfit.cli.main import (
     EXIT_NO_FIT,
     _progress,
     _write_json,
-    demo_group,
-    main,
     stdout_guard,
     trust_edited_option,
 )
@@ -134,7 +132,7 @@ def _one_domain(pairs: list[list[float]] | None) -> tuple[float, float] | None:
     return lo, hi
 
 
-@main.command("cdf")
+@click.command("cdf")
 @click.argument("input_path", metavar="INPUT", type=click.Path(dir_okay=False, path_type=Path))
 @click.option("-o", "--output", type=click.Path(dir_okay=False, path_type=Path),
               help="CDF fit file to write (JSON; read by `ratfit sample`). Written only "
@@ -217,7 +215,7 @@ def cdf_cmd(input_path: Path, output: Path | None, source: str | None, fmt: str 
 
 
 # ---------------------------------------------------------------------------- sample
-@main.command("sample")
+@click.command("sample")
 @trust_edited_option
 @click.argument("fit_path", metavar="CDF.json", type=click.Path(dir_okay=False, path_type=Path))
 @click.option("-n", "count", type=click.IntRange(1, MAX_DRAWS), required=True,
@@ -253,7 +251,7 @@ def sample_cmd(fit_path: Path, count: int, seed: int | None, output: Path | None
 
 
 # ---------------------------------------------------------------------------- demo cdf
-@demo_group.command("cdf")
+@click.command("cdf")
 @aliased_option("-o", "--output", "outdir", hidden=["--outdir"],
                 type=click.Path(file_okay=False, path_type=Path),
                 default=Path("ratfit-cdf"), show_default=True,

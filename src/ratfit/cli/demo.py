@@ -1,4 +1,4 @@
-"""`ratfit demo addendum`: the seed's section 2 reproduced."""
+"""`ratfit demo`: its group, and `ratfit demo addendum`: the seed's section 2 reproduced."""
 
 from __future__ import annotations
 
@@ -8,8 +8,13 @@ from pathlib import Path
 import click
 from rich.markup import escape
 
-from ratfit.cli.main import EXIT_NO_FIT, _write_json, console, demo_group, fit_table
+from ratfit.cli.main import EXIT_NO_FIT, LazyGroup, _write_json, console, fit_table
 from ratfit.cli.options import aliased_option, fit_options
+
+
+@click.group("demo", cls=LazyGroup, lazy={"cdf": "ratfit.cli.cdf:demo_cdf"})
+def demo_group() -> None:
+    """Built-in demonstrations on built-in data."""
 
 
 @demo_group.command("addendum")

@@ -8,7 +8,7 @@ from typing import Any
 
 import click
 
-from ratfit.cli.main import _write_json, console, fit_table, main, trust_edited_option
+from ratfit.cli.main import _write_json, console, fit_table, trust_edited_option
 from ratfit.cli.options import aliased_option
 from ratfit.errors import InputError
 
@@ -25,7 +25,7 @@ rel_floor_option = click.option(
          "channel's largest |data|, so near-zero samples do not dominate.")
 
 
-@main.command("export")
+@click.command("export")
 @trust_edited_option
 @click.argument("fit_path", metavar="FIT.json", type=_FILE)
 @click.option("--lang", type=click.Choice(["c", "glsl", "python"]), required=True)
@@ -65,7 +65,7 @@ def export_cmd(fit_path: Path, lang: str, output: Path, form: str, prefix: str,
     click.echo(f"wrote {output}", err=err)
 
 
-@main.command("plot")
+@click.command("plot")
 @trust_edited_option
 @click.argument("fit_path", metavar="FIT.json", type=_FILE)
 @click.option("--data", "data_path", type=_FILE, help="Data file to show with the fit.")
@@ -177,7 +177,7 @@ def _say_recheck(fit, seg, data_path: Path) -> None:
         click.echo(f"checked on {data_path}: channel {name}: {met} of {tot} segments met{extra}")
 
 
-@main.command("report")
+@click.command("report")
 @trust_edited_option
 @click.argument("fit_path", metavar="FIT.json", type=_FILE)
 @click.option("--data", "data_path", type=_FILE, help="Data file the fit is compared with.")
@@ -294,28 +294,23 @@ def _print_compare(rows: list[dict], title: str, rel_floor: float) -> None:
               highlight=False, markup=False)
 
 
-def _register_compare(group: click.Group) -> None:
-    @group.command("compare")
-    @click.argument("data_path", metavar="DATA", type=_FILE)
-    @click.argument("fits", metavar="FIT...", nargs=-1)
-    @click.option("--model", "models", multiple=True,
-                  help="Analytic model fitted to DATA, e.g. lambert+ggx, lambert+lafortune*2 "
-                       "(repeatable). Lobes: lambert, blinn, ward, beckmann, ggx, lafortune.")
-    @click.option("--param", default=None,
-                  help="Parametrization for --model-only runs (default: the file's).")
-    @click.option("--starts", type=click.IntRange(1, 1000), default=8, show_default=True,
-                  help="Random starts per analytic fit.")
-    @click.option("--json", "as_json", is_flag=True, help="Print one JSON object on stdout.")
-    @rel_floor_option
-    @trust_edited_option
-    def compare_cmd(data_path: Path, fits: tuple[str, ...], models: tuple[str, ...],
-                    param: str | None, starts: int, as_json: bool, rel_floor: float) -> None:
-        """Metrics of rational fits (FIT files) and analytic models side by side on DATA.
+@click.command("compare")
+@click.argument("data_path", metavar="DATA", type=_FILE)
+@click.argument("fits", metavar="FIT...", nargs=-1)
+@click.option("--model", "models", multiple=True,
+              help="Analytic model fitted to DATA, e.g. lambert+ggx, lambert+lafortune*2 "
+                   "(repeatable). Lobes: lambert, blinn, ward, beckmann, ggx, lafortune.")
+@click.option("--param", default=None,
+              help="Parametrization for --model-only runs (default: the file's).")
+@click.option("--starts", type=click.IntRange(1, 1000), default=8, show_default=True,
+              help="Random starts per analytic fit.")
+@click.option("--json", "as_json", is_flag=True, help="Print one JSON object on stdout.")
+@rel_floor_option
+@trust_edited_option
+def compare_cmd(data_path: Path, fits: tuple[str, ...], models: tuple[str, ...],
+                param: str | None, starts: int, as_json: bool, rel_floor: float) -> None:
+    """Metrics of rational fits (FIT files) and analytic models side by side on DATA.
 
-        Shows progress and an estimate of the time left on stderr."""
-        _compare(data_path, fits, models, param, starts, as_json, rel_floor)
+    Shows progress and an estimate of the time left on stderr."""
+    _compare(data_path, fits, models, param, starts, as_json, rel_floor)
 
-
-from ratfit.cli.brdf import brdf_group  # noqa: E402  (its group; imported after ours is defined)
-
-_register_compare(brdf_group)

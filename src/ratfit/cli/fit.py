@@ -15,7 +15,6 @@ from ratfit.cli.main import (
     _progress,
     _write_json,
     csv_line,
-    main,
     stdout_guard,
     trust_edited_option,
 )
@@ -24,7 +23,7 @@ from ratfit.io.data import FORMATS
 
 
 # ---------------------------------------------------------------------------- fit
-@main.command("fit")
+@click.command("fit")
 @click.argument("input_path", metavar="INPUT", type=click.Path(dir_okay=False, path_type=Path))
 @click.option("-o", "--output", type=click.Path(dir_okay=False, path_type=Path),
               help="Fit file to write (JSON); written only when every channel is verified.")
@@ -110,7 +109,7 @@ def _print_excursions(report: Any) -> None:
         con.print(escape(f"(between samples: {done[0].method})"), highlight=False)
 
 
-@main.command("eval")
+@click.command("eval")
 @trust_edited_option
 @click.argument("fit_path", metavar="FIT.json", type=click.Path(dir_okay=False, path_type=Path))
 @click.argument("input_path", metavar="INPUT", type=click.Path(dir_okay=False, path_type=Path))

@@ -8,13 +8,14 @@ message lists the files that were written and are complete), 130 Ctrl-C.
 from __future__ import annotations
 
 import contextlib
+import importlib
 import json
 import os
 import sys
 import threading
 import time
 import warnings
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from pathlib import Path
 from typing import Any
 
@@ -67,7 +68,49 @@ def stdout_guard():
         raise StdoutError(exc) from None
 
 
-class _Main(click.Group):
+class LazyGroup(click.Group):
+    """A group whose commands may live in other modules, imported when first looked up.
+
+    ``lazy`` maps a command name to ``"module:attribute"``; commands added the usual
+    way (``@group.command``) sit beside them. Listing the commands (``--help``)
+    imports every module; running one imports its own module only.
+    """
+
+    def __init__(self, *args: Any, lazy: Mapping[str, str] | None = None, **kwargs: Any) -> None:
+        super().__init__(*args, **kwargs)
+        self.lazy: dict[str, str] = dict(lazy or {})
+
+    def list_commands(self, ctx: click.Context) -> list[str]:
+        return sorted({*self.commands, *self.lazy})
+
+    def get_command(self, ctx: click.Context, cmd_name: str) -> click.Command | None:
+        if cmd_name not in self.commands and cmd_name in self.lazy:
+            module, _, attr = self.lazy[cmd_name].partition(":")
+            cmd = getattr(importlib.import_module(module), attr)
+            if not isinstance(cmd, click.Command) or cmd.name != cmd_name:
+                raise TypeError(f"{self.lazy[cmd_name]} is not the command {cmd_name!r}")
+            self.add_command(cmd)
+        return super().get_command(ctx, cmd_name)
+
+
+# Every command of ``ratfit``: name -> "module:attribute", imported on first use.
+COMMANDS: dict[str, str] = {
+    "batch": "ratfit.cli.batch:batch_cmd",
+    "brdf": "ratfit.cli.brdf:brdf_group",
+    "cdf": "ratfit.cli.cdf:cdf_cmd",
+    "demo": "ratfit.cli.demo:demo_group",
+    "eval": "ratfit.cli.fit:eval_cmd",
+    "export": "ratfit.cli.export:export_cmd",
+    "fit": "ratfit.cli.fit:fit_cmd",
+    "plot": "ratfit.cli.export:plot_cmd",
+    "render": "ratfit.cli.render:render_cmd",
+    "report": "ratfit.cli.export:report_cmd",
+    "sample": "ratfit.cli.cdf:sample_cmd",
+    "tolerance": "ratfit.cli.tolerance:tolerance_cmd",
+}
+
+
+class _Main(LazyGroup):
     """Maps library errors to one-line messages and exit codes, without tracebacks.
 
     Warnings raised while a command runs are held back: when the input turns out
@@ -178,7 +221,8 @@ def _replay(caught: list[warnings.WarningMessage]) -> None:
         click.echo(f"warning: {text}", err=True)
 
 
-@click.group(cls=_Main, context_settings={"help_option_names": ["-h", "--help"]})
+@click.group(cls=_Main, lazy=COMMANDS,
+             context_settings={"help_option_names": ["-h", "--help"]})
 @click.version_option(package_name="ratfit")
 def main() -> None:
     """Verified rational fits of vertical segments (interval data).
@@ -379,8 +423,3 @@ def _report_table(results, out: Path | None, verified_as: str | None) -> None:
 def _fmt(v: float | None) -> str:
     return "-" if v is None else f"{v:.3g}"
 
-
-# ---------------------------------------------------------------------------- eval
-@main.group("demo")
-def demo_group() -> None:
-    """Built-in demonstrations on built-in data."""

@@ -8,11 +8,10 @@ from pathlib import Path
 import click
 import numpy as np
 
-from ratfit.cli.main import main
 from ratfit.cli.options import FiniteFloatRange
 
 
-@main.command("render")
+@click.command("render")
 @click.argument("fit_path", metavar="FIT.json", type=click.Path(dir_okay=False, path_type=Path))
 @click.option("-o", "--output", required=True, type=click.Path(dir_okay=False, path_type=Path),
               help="Image (.exr linear, or .png tonemapped). With --data: fit | data | |diff| "

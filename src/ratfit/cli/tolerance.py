@@ -8,13 +8,13 @@ from typing import Any
 
 import click
 
-from ratfit.cli.main import EXIT_NO_FIT, _fmt, _write_json, main
+from ratfit.cli.main import EXIT_NO_FIT, _fmt, _write_json
 from ratfit.cli.options import FiniteFloatRange, fit_options, pop_fit_params
 from ratfit.io.data import FORMATS
 from ratfit.jobs.common import results_summary
 
 
-@main.command("tolerance")
+@click.command("tolerance")
 @click.argument("input_path", metavar="INPUT", type=click.Path(dir_okay=False, path_type=Path))
 @fit_options(only=("n", "m"), required=("n", "m"),
              helps={"n": "Numerator coefficients.", "m": "Denominator coefficients."})

@@ -1,12 +1,29 @@
 """The search over sizes (n, m) and what builds on it: certificates of infeasibility,
 best tolerance at a fixed size, shared denominators, dense-grid constraint generation.
+
+The names below are imported from their modules on first use: the search
+(``import ratfit``, ``ratfit fit``) does not load the others.
 """
 
-from ratfit.fitting.certificate import Certificate
-from ratfit.fitting.dense import DenseCheck, DenseFit, dense_check, fit_dense
-from ratfit.fitting.search import RationalFitter, fit
-from ratfit.fitting.shared_denominator import SharedDenominatorFitter, SharedFit
-from ratfit.fitting.tolerance import ToleranceResult, best_width
+from __future__ import annotations
+
+import importlib
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:
+    from ratfit.fitting.certificate import Certificate
+    from ratfit.fitting.dense import DenseCheck, DenseFit, dense_check, fit_dense
+    from ratfit.fitting.search import RationalFitter, fit
+    from ratfit.fitting.shared_denominator import SharedDenominatorFitter, SharedFit
+    from ratfit.fitting.tolerance import ToleranceResult, best_width
+
+_WHERE = {
+    "Certificate": "certificate",
+    "DenseCheck": "dense", "DenseFit": "dense", "dense_check": "dense", "fit_dense": "dense",
+    "RationalFitter": "search", "fit": "search",
+    "SharedDenominatorFitter": "shared_denominator", "SharedFit": "shared_denominator",
+    "ToleranceResult": "tolerance", "best_width": "tolerance",
+}
 
 __all__ = [
     "Certificate",
@@ -21,3 +38,16 @@ __all__ = [
     "fit",
     "fit_dense",
 ]
+
+
+def __getattr__(name: str) -> Any:
+    module = _WHERE.get(name)
+    if module is None:
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    value = getattr(importlib.import_module(f"{__name__}.{module}"), name)
+    globals()[name] = value
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted(set(globals()) | set(__all__))

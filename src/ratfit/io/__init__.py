@@ -1,15 +1,32 @@
 """Files in and out: tabular data (ALTA text, CSV, .npz, NIST StRD), ratfit fit files,
 ALTA function files.
+
+The names below are imported from their modules on first use: reading data and
+writing fit files (``ratfit fit``) does not load the ALTA function format.
 """
 
-from ratfit.io.alta_function import (
-    ALTAFunction,
-    read_alta_function,
-    write_alta_data,
-    write_alta_function,
-)
-from ratfit.io.data import Dataset, read_data, write_alta, write_csv
-from ratfit.io.fitfile import SavedFit, fit_document, load_fit, save_fit
+from __future__ import annotations
+
+import importlib
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:
+    from ratfit.io.alta_function import (
+        ALTAFunction,
+        read_alta_function,
+        write_alta_data,
+        write_alta_function,
+    )
+    from ratfit.io.data import Dataset, read_data, write_alta, write_csv
+    from ratfit.io.fitfile import SavedFit, fit_document, load_fit, save_fit
+
+_WHERE = {
+    "ALTAFunction": "alta_function", "read_alta_function": "alta_function",
+    "write_alta_data": "alta_function", "write_alta_function": "alta_function",
+    "Dataset": "data", "read_data": "data", "write_alta": "data", "write_csv": "data",
+    "SavedFit": "fitfile", "fit_document": "fitfile", "load_fit": "fitfile",
+    "save_fit": "fitfile",
+}
 
 __all__ = [
     "ALTAFunction",
@@ -25,3 +42,16 @@ __all__ = [
     "write_alta_function",
     "write_csv",
 ]
+
+
+def __getattr__(name: str) -> Any:
+    module = _WHERE.get(name)
+    if module is None:
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    value = getattr(importlib.import_module(f"{__name__}.{module}"), name)
+    globals()[name] = value
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted(set(globals()) | set(__all__))

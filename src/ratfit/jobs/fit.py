@@ -196,14 +196,17 @@ class FitReport:
 
 def _read_fit_data(req: FitRequest) -> Any:
     """The request's data file; a measured BRDF file (MERL, EXR, Cornell, ASTM) is
-    refused with the command that fits it."""
-    from ratfit.brdf.io import measured_brdf_format
+    refused with the command that fits it (the BRDF package is imported only then)."""
     from ratfit.io.data import read_data
 
-    kind = measured_brdf_format(req.input) if req.format is None else None
     try:
         return read_data(req.input, fmt=req.format, dim=req.dim)
     except RatfitError:
+        if req.format is not None:
+            raise
+        from ratfit.brdf.io import measured_brdf_format
+
+        kind = measured_brdf_format(req.input)
         if kind is None:
             raise
     raise InputError(
