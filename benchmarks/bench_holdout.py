@@ -10,11 +10,14 @@ e = 1e-3 1/sr) of the rational fit and of the better model for each metric, the
 fold fits' coefficient counts, and whether the rational fit wins all three.
 
     python benchmarks/bench_holdout.py [--data DIR] [--only NAME ...] [--k 5] [--workers W]
+        [--fit KEY=VALUE ...]
 
 ``--workers W`` fits the folds (of every material at once) and the models in W
 processes; every fold fit is bounded by counted work, so the table is the same for
 any W (seconds aside: with W > 1 a material's "s" is the sum of its fold fits' own
-times, not the wall time).
+times, not the wall time). ``--fit KEY=VALUE`` (repeatable) fits every fold with a
+non-default option (a keyword of ``fit_brdf_auto``), to choose defaults by held-out
+error.
 """
 
 from __future__ import annotations
@@ -57,10 +60,22 @@ def models_held_out(ds, k: int, seed: int) -> dict[str, dict[str, dict[str, floa
     return out
 
 
-def _timed_fold(frames, test, jobs: int | None):
+def _timed_fold(frames, test, options: dict):
     t0 = time.perf_counter()
-    out = fit_fold(frames, test, **({} if jobs is None else {"jobs": jobs}))
+    out = fit_fold(frames, test, **options)
     return out, time.perf_counter() - t0
+
+
+def _option(text: str) -> tuple[str, object]:
+    key, sep, value = text.partition("=")
+    if not sep or not key:
+        raise SystemExit(f"error: --fit needs KEY=VALUE, got {text!r}")
+    for kind in (int, float):
+        try:
+            return key, kind(value)
+        except ValueError:
+            pass
+    return key, {"true": True, "false": False, "none": None}.get(value.lower(), value)
 
 
 def main() -> None:
@@ -72,6 +87,9 @@ def main() -> None:
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--workers", type=int, default=1,
                     help="processes for the fold fits and models (default 1)")
+    ap.add_argument("--fit", action="append", default=[], metavar="KEY=VALUE",
+                    help="a fit option other than the default, e.g. polish_error=relative "
+                         "(repeatable; keyword of ratfit.brdf.fitter.fit_brdf_auto)")
     add_markdown_option(ap)
     args = ap.parse_args()
     rep = report(args, __file__)
@@ -82,9 +100,11 @@ def main() -> None:
     for name in names:
         samples = read_brdf(args.data / "cornell" / f"{name}.brdf")
         frames[name] = [samples_dataset(samples, p) for p in candidate_parametrizations(OWN)]
-    jobs = 1 if args.workers > 1 else None  # processes, not threads, when several
+    options = dict(_option(o) for o in args.fit)
+    if args.workers > 1:
+        options.setdefault("jobs", 1)  # processes, not threads, when several
     with ProcessPoolExecutor(max_workers=max(1, args.workers)) as pool:
-        folds = {name: [pool.submit(_timed_fold, frames[name], t, jobs)
+        folds = {name: [pool.submit(_timed_fold, frames[name], t, options)
                         for t in fold_indices(frames[name][0].n_points, args.k, args.seed)]
                  for name in names}
         model_runs = {name: pool.submit(models_held_out, frames[name][-1], args.k, args.seed)
@@ -104,9 +124,11 @@ def main() -> None:
                                     "fits verified: not compared", secs)
                     continue
                 cmp.add(name, ch, coefs, res.metrics[ch], models, secs)
-    cmp.write_to(rep, title=f"held out ({args.k}-fold, seed {args.seed}): the default rational "
-                 f"fit against the better of {', '.join(MODELS)}, per channel",
-                 size="coefs", seconds="s", what="Held out, the default rational fit",
+    what = "the default rational fit" if not args.fit else \
+        "the rational fit with " + ", ".join(args.fit)
+    cmp.write_to(rep, title=f"held out ({args.k}-fold, seed {args.seed}): {what} "
+                 f"against the better of {', '.join(MODELS)}, per channel",
+                 size="coefs", seconds="s", what=f"Held out, {what}",
                  legend="coefs: the fold fits' totals over the three channels; s: the "
                         "material's K fold fits.",
                  plot="bench_holdout", caption="held out: better analytic model's error / "
