@@ -124,6 +124,10 @@ def main() -> None:
                                     "fits verified: not compared", secs)
                     continue
                 cmp.add(name, ch, coefs, res.metrics[ch], models, secs)
+            # each material's rows as soon as they are known: a run stopped later keeps them
+            print("\n".join("  " + " | ".join(str(c) for c in row)
+                            for row in cmp.rows[-len(frames[name][0].output_names):]),
+                  file=sys.stderr, flush=True)
     what = "the default rational fit" if not args.fit else \
         "the rational fit with " + ", ".join(args.fit)
     cmp.write_to(rep, title=f"held out ({args.k}-fold, seed {args.seed}): {what} "
