@@ -6,8 +6,9 @@ Prints four tables:
    seed matrix, delta from np.linalg.svd, no active set), one such QP at the
    answer's size, ratfit in-process and ratfit through the CLI (the search time
    the CLI reports and the whole process, with a bytecode cache as installed
-   packages have); targets: ratfit >= 6x faster than the loop, within 5x of the
-   one QP;
+   packages have), and the interpreter importing numpy alone (no fit: the floor
+   under any whole process); targets: ratfit >= 6x faster than the loop, within
+   5x of the one QP;
 1. the minimal-total search (all totals from 2 up): staircase walk with 1 and
    2 threads against ALTA's exhaustive strategy (every split of every total),
    measured in the same run: the ratio column is time / exhaustive time;
@@ -102,6 +103,13 @@ def seed_table(rep: Report, seg, repeat: int) -> None:
             wall = time.perf_counter() - t0
             doc = json.loads(out.stdout)
             runs.append((doc["seconds"], wall, doc["n"], doc["m"]))
+        # the floor under any Python CLI's whole process: the interpreter importing numpy
+        floor_runs = []
+        for _ in range(repeat):
+            t0 = time.perf_counter()
+            subprocess.run([sys.executable, "-c", "import numpy"], check=True, env=env)
+            floor_runs.append(time.perf_counter() - t0)
+    numpy_floor = min(floor_runs)
     cli_search = min(v[0] for v in runs)
     cli_wall = min(v[1] for v in runs)
     cn, cm = runs[0][2], runs[0][3]
@@ -116,6 +124,8 @@ def seed_table(rep: Report, seg, repeat: int) -> None:
          f"{brute / cli_search:.2f}", f"{cli_search / one:.1f}"],
         ["ratfit CLI, whole process", f"{cn}+{cm}", f"{cli_wall:.3f}", f"{brute / cli_wall:.2f}",
          f"{cli_wall / one:.1f}"],
+        ["python -c 'import numpy' (no fit: the floor of any whole process)", "-",
+         f"{numpy_floor:.3f}", f"{brute / numpy_floor:.2f}", f"{numpy_floor / one:.1f}"],
     ]
     rep.table("seed search (1000 points, +-10 %, Legendre, totals from 2), one run; targets: "
               "'x faster' >= 6, 'x one QP' <= 5",
