@@ -80,7 +80,7 @@ def _fit_child(data: str, out: str, work_limit: int | None) -> None:
     sys.argv = ["ratfit", "brdf", "fit", data, "-o", out,
                 *([] if work_limit is None else ["--work-limit", str(work_limit)])]
     rep = fit_brdf_file(BRDFFitRequest(Path(data), options=opts, output=Path(out)))
-    for line in [*rep.notes(), rep.hint]:
+    for line in [*rep.notes(), rep.hint()]:
         if line:
             say(f"  {line}")
     sys.exit(0 if rep.written is not None else 1)
@@ -105,7 +105,11 @@ def given_work_limit(path: Path) -> int | None:
     """The ``--work-limit`` of the command that wrote a fit file, if it had one."""
     from ratfit.io.fitfile import load_fit
 
-    cmd = (load_fit(path).provenance or {}).get("command") or []
+    return work_limit_of((load_fit(path).provenance or {}).get("command") or [])
+
+
+def work_limit_of(cmd: list[str]) -> int | None:
+    """The ``--work-limit`` value of a command line, or None."""
     for i, arg in enumerate(cmd):
         if arg == "--work-limit" and i + 1 < len(cmd):
             return int(cmd[i + 1])
