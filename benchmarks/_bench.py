@@ -240,14 +240,20 @@ class Report:
         self.parts.append(text)
         self._say(text)
 
-    def figure(self, fig: Any, stem: str, caption: str) -> Path | None:
+    def figure(self, fig: Any, stem: str, caption: str, fmt: str = "png") -> Path | None:
         """Save a matplotlib figure as ``<stem>.png`` beside the Markdown file and link it
-        there; without ``--markdown`` nothing is saved."""
+        there; without ``--markdown`` nothing is saved. ``fmt="jpg"``: a JPEG (quality
+        90) for pictures of noisy renders, which PNG stores at several times the size."""
         if self.markdown is None:
             return None
-        png = self.markdown.parent / f"{stem}.png"
+        if fmt not in ("png", "jpg"):
+            raise ValueError(f"figure format must be png or jpg, got {fmt!r}")
+        png = self.markdown.parent / f"{stem}.{fmt}"
         png.parent.mkdir(parents=True, exist_ok=True)
-        fig.savefig(png, dpi=110, bbox_inches="tight", metadata={"Software": None})
+        if fmt == "png":
+            fig.savefig(png, dpi=110, bbox_inches="tight", metadata={"Software": None})
+        else:
+            fig.savefig(png, dpi=110, bbox_inches="tight", pil_kwargs={"quality": 90})
         try:
             link = png.resolve().relative_to(PAGES.resolve()).as_posix()
         except ValueError:

@@ -165,11 +165,31 @@ class Material:
     model_file: dict[str, Path] = field(default_factory=dict)
     model_seconds: float = 0.0
     best: str = ""
+    fit_diffuse: np.ndarray | None = None  # median fit / data per channel, diffuse samples
+    model_diffuse: dict[str, np.ndarray] = field(default_factory=dict)
+
+
+def rgb_text(v: np.ndarray) -> str:
+    return " / ".join(f"{x:.3g}" for x in v)
 
 
 def channel_rms(rows: list[dict[str, Any]], key: str) -> float:
     """RMS over the channels of one metric."""
     return float(np.sqrt(np.mean([r[key] ** 2 for r in rows])))
+
+
+DIFFUSE = 0.05  # samples below this fraction of their channel's largest value
+EPS = 1e-3  # 1/sr added to both sides of a ratio (measured zeros)
+
+
+def diffuse_ratio(pred: np.ndarray, y: np.ndarray) -> np.ndarray:
+    """Per channel, the median of (pred + EPS) / (y + EPS) over the samples below
+    ``DIFFUSE`` x the channel's largest value: how bright a fit is off the highlight."""
+    out = []
+    for c in range(y.shape[1]):
+        low = y[:, c] < DIFFUSE * y[:, c].max()
+        out.append(float(np.median((pred[low, c] + EPS) / (y[low, c] + EPS))))
+    return np.array(out)
 
 
 def fit_models(m: Material, out: Path, starts: int) -> None:
@@ -178,6 +198,7 @@ def fit_models(m: Material, out: Path, starts: int) -> None:
     from ratfit.brdf.io import brdf_dataset
     from ratfit.viz.report import (
         LoadedFit,
+        data_dirs,
         load_data_for,
         model_fit_for,
         model_metrics,
@@ -186,12 +207,15 @@ def fit_models(m: Material, out: Path, starts: int) -> None:
 
     if m.fit is not None:
         lf = LoadedFit.load(m.fit)
-        rows = rational_metrics(lf, load_data_for(lf, m.data))
+        dsf = load_data_for(lf, m.data)
+        rows = rational_metrics(lf, dsf)
         m.fit_cos = channel_rms(rows, "cos_rmse")
         m.fit_coefs = sum(int(r["coefficients"]) for r in rows)
         m.fit_param = str(lf.param)
+        m.fit_diffuse = diffuse_ratio(lf.brdf.eval_coords(dsf.x), np.asarray(dsf.y))
     ds = brdf_dataset(m.data, None, color="rgb")
     param = str(ds.meta.get("param_in"))
+    L, V = data_dirs(param, ds)
     t0 = time.perf_counter()
     for spec in MODELS:
         mf = model_fit_for(param, ds, spec, starts=starts)
@@ -203,6 +227,7 @@ def fit_models(m: Material, out: Path, starts: int) -> None:
         m.model_cos[spec] = channel_rms(rows, "cos_rmse")
         m.model_params[spec] = int(mf.params.size)
         m.model_file[spec] = path
+        m.model_diffuse[spec] = diffuse_ratio(mf.eval_dirs(L, V), np.asarray(ds.y))
     m.model_seconds = time.perf_counter() - t0
     m.best = min(MODELS, key=lambda s: m.model_cos[s])
     say(f"{m.name}: models fitted in {m.model_seconds:.0f} s; cos RMSE "
@@ -358,17 +383,27 @@ def main() -> None:
         "the default rational fit and the analytic models at the samples (cos RMSE: RMS "
         "over R, G, B of each channel's cos-weighted RMSE, 1/sr)",
         ["material", "fit", "frame", "fit n+m", "fit cos RMSE",
-         *(f"{s} cos RMSE" for s in MODELS), "drawn"],
+         *(f"{s} cos RMSE" for s in MODELS), "drawn", "diffuse fit / data",
+         "diffuse model / data"],
         [[m.name, m.fit_how, m.fit_param or "-",
           "-" if m.fit_coefs is None else str(m.fit_coefs),
           "-" if m.fit_cos is None else f"{m.fit_cos:.4g}",
-          *(f"{m.model_cos[s]:.4g}" for s in MODELS), m.best] for m in mats],
+          *(f"{m.model_cos[s]:.4g}" for s in MODELS), m.best,
+          "-" if m.fit_diffuse is None else rgb_text(m.fit_diffuse),
+          rgb_text(m.model_diffuse[m.best])] for m in mats],
         note=f"The model drawn is the one with the smaller cos RMSE ({', '.join(MODELS)}, "
              f"{args.starts} starts per channel, fitted by `ratfit.viz.report.model_fit_for`: "
              "`ratfit brdf model`); n+m: the rational fit's coefficients over the three "
-             "channels.")
+             "channels; diffuse x / data: per channel (R / G / B), the median of (x + 1e-3) / "
+             f"(data + 1e-3) over the samples below {DIFFUSE:g} x the channel's largest value "
+             "(1: right off the highlight).")
 
     # 3. renders
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
     args.out.mkdir(parents=True, exist_ok=True)
     for scene in args.scene:
         rows, pics, wins, counted = [], [], 0, 0
@@ -408,8 +443,6 @@ def main() -> None:
             fig = draw_rows([(m.name, ims, caps)], title)
             png = args.out / f"{m.name}-{scene}.png"
             fig.savefig(png, dpi=100, metadata={"Software": None})
-            import matplotlib.pyplot as plt
-
             plt.close(fig)
             pics.append((m.name, ims, caps))
             timing = ", ".join(f"{k} {v:.0f} s" for k, v in
@@ -432,7 +465,8 @@ def main() -> None:
                               "fit | model | |fit - data| | |model - data|, one exposure "
                               "per row")
         rep.figure(fig, f"bench_cornell_render_{scene}",
-                   f"{scene}: data, fit, model and the two differences per material")
+                   f"{scene}: data, fit, model and the two differences per material", fmt="jpg")
+        plt.close(fig)
     say("\nsteps:")
     for s in steps:
         say(f"  {s}")

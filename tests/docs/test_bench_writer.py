@@ -188,6 +188,19 @@ def test_a_figure_is_saved_beside_the_file_and_linked(bench, tmp_path: Path) -> 
     assert bench.Report(script="x.py", quiet=True).figure(cmp.figure(), "x", "c") is None
 
 
+def test_a_figure_can_be_a_jpeg(bench, tmp_path: Path) -> None:
+    pytest.importorskip("matplotlib")
+    cmp = bench.ModelComparison(["rmse"])
+    cmp.add("m", "R", "1+1", {"rmse": 0.1}, {"g": {"R": {"rmse": 0.2}}}, 1.0)
+    rep = bench.Report(script="x.py", markdown=tmp_path / "gen" / "x.md", quiet=True)
+    jpg = rep.figure(cmp.figure(), "x", "a caption", fmt="jpg")
+    assert jpg == tmp_path / "gen" / "x.jpg"
+    assert jpg.read_bytes()[:3] == b"\xff\xd8\xff"  # JPEG's start of image
+    assert rep.parts[-1] == "![a caption](x.jpg)"
+    with pytest.raises(ValueError, match="png or jpg"):
+        rep.figure(cmp.figure(), "x", "c", fmt="gif")
+
+
 def test_a_comparison_writes_its_table_its_count_and_its_plot(bench, tmp_path: Path) -> None:
     pytest.importorskip("matplotlib")
     cmp = bench.ModelComparison(["rmse", "cos_rmse"])
