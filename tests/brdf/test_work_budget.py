@@ -112,3 +112,21 @@ def test_the_users_time_limit_still_bounds_the_polish(limit) -> None:
     fitter = BRDFFitter(parametrization=P, time_limit=limit)
     d = fitter._polish_deadline()
     assert (d is None) == (limit is None)
+
+
+def test_the_table_footer_names_the_users_work_limit(capsys) -> None:
+    """Every channel searched again has a quarter of --work-limit as its budget: the
+    footer still names the limit the user gave (or the default), and says so."""
+    from ratfit.cli.main import _report_table
+
+    results = _fit(jobs=1).results_
+    quarter = [replace(r, work_limit=DEFAULT_WORK_LIMIT // 4) for r in results]
+    _report_table(quarter, None, None, DEFAULT_WORK_LIMIT)
+    out = capsys.readouterr().out
+    assert (f"(--work-limit {DEFAULT_WORK_LIMIT}; a channel searched again with the full "
+            "validity proof has a quarter)") in " ".join(out.split())
+    assert f"/{DEFAULT_WORK_LIMIT // 4}" in out
+    full = [replace(r, work_limit=DEFAULT_WORK_LIMIT) for r in results]
+    _report_table(full, None, None, DEFAULT_WORK_LIMIT)
+    out = " ".join(capsys.readouterr().out.split())
+    assert f"(--work-limit {DEFAULT_WORK_LIMIT})" in out and "quarter" not in out

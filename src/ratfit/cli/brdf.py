@@ -144,7 +144,8 @@ def brdf_fit(input_path: Path, output: Path | None, fmt: str | None, param: str 
 def _print_brdf_report(report: Any) -> None:
     """The table of ``ratfit fit``, then the frame, the status and the errors."""
     seg, meta = report.segments, report.meta
-    _print_report(report.results, report.written, verified_as="subset" if report.subset else None)
+    _print_report(report.results, report.written, verified_as="subset" if report.subset else None,
+                  work_limit=report.request.options.work_limit)
     click.echo(f"parametrization {report.parametrization}, {seg.n_points} samples")
     sh = meta.get("shared")
     if sh and report.success:

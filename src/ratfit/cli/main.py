@@ -367,14 +367,18 @@ def fit_table(con: Any, title: str, columns: list[str], rows: list[list[str]],
 SHOWN_DISAGREEMENTS = 3
 
 
-def _print_report(results, out: Path | None, verified_as: str | None = None) -> None:
+def _print_report(results, out: Path | None, verified_as: str | None = None,
+                  work_limit: int | None = None) -> None:
     """``verified_as``: what the verified column says of a success instead of "yes"
-    (a fit verified on a subset of the data says "subset")."""
+    (a fit verified on a subset of the data says "subset"). ``work_limit``: the
+    ``--work-limit`` the fit ran with, for the footer (default: the largest channel
+    budget; a BRDF channel searched again has a quarter of it)."""
     with stdout_guard():
-        _report_table(results, out, verified_as)
+        _report_table(results, out, verified_as, work_limit)
 
 
-def _report_table(results, out: Path | None, verified_as: str | None) -> None:
+def _report_table(results, out: Path | None, verified_as: str | None,
+                  work_limit: int | None = None) -> None:
     from rich.markup import escape as esc
 
     con = console()
@@ -400,7 +404,10 @@ def _report_table(results, out: Path | None, verified_as: str | None) -> None:
         con.print(f"(narrow terminal: {', '.join(dropped)} in --json)", highlight=False)
     budgets = {r.work_limit for r in results if r.work_limit is not None}
     if budgets and "QPs" not in dropped:
-        con.print(f"QPs: solves / budget per channel (--work-limit {max(budgets)})",
+        limit = max(budgets) if work_limit is None else work_limit
+        share = "" if budgets == {limit} else \
+            "; a channel searched again with the full validity proof has a quarter"
+        con.print(f"QPs: solves / budget per channel (--work-limit {limit}{share})",
                   highlight=False)
     for r in results:
         if not r.success:
