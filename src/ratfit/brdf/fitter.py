@@ -1319,21 +1319,23 @@ class BRDFFit:
         """Where the fit is evaluated for unit directions L, V (N, 3) above the horizon.
 
         The one definition every evaluator shares (``brdf eval``, the exports, the
-        renderer): of the pair and its images under the symmetries of a BRDF
-        (reciprocity L <-> V; for all but full parametrizations also the mirror
-        y -> -y, which isotropy allows), the first one whose coordinates are nearest
-        to the fit's domain box, clipped into the box. The validity proof
-        (:func:`ratfit.brdf.validity.prove_validity`) covers exactly these points.
-        Also returns which rows needed the clip.
+        renderer): of the pair and its images under the symmetries of a BRDF, the
+        first one whose coordinates are nearest to the fit's domain box, clipped into
+        the box. The images, in order: for all but full parametrizations the mirror
+        y -> -y (exact for an isotropic material), then reciprocity L <-> V and its
+        mirror (measurements are not always reciprocal: acryl_blue's fit in
+        ISOTROPIC_TV_TL_DPHI, whose box holds delta_phi >= 0 only, had a seam at
+        delta_phi = 0 when the exchanged pair came first). The validity proof
+        (:func:`ratfit.brdf.validity.prove_validity`) covers every point of the box
+        these reach. Also returns which rows needed the clip.
         """
         p = get_parametrization(self.parametrization)
         dom = np.asarray(self.saved.space.domain, dtype=float)
         la, va = check_dirs(L, V)
         cols = np.setdiff1d(np.arange(p.dim), self.dropped)
         flip = np.array([1.0, -1.0, 1.0])
-        cands = [(la, va), (va, la)]
-        if p.invariant != "full":
-            cands += [(la * flip, va * flip), (va * flip, la * flip)]
+        cands = [(la, va), (va, la)] if p.invariant == "full" else \
+            [(la, va), (la * flip, va * flip), (va, la), (va * flip, la * flip)]
         best = dist = None
         with np.errstate(all="ignore"):
             for a, b in cands:

@@ -673,10 +673,10 @@ def _param_lines(lang: _Lang, pname: str, prefix: str, nch: int, cosine: bool,
 def _brdf_lines(lang: _Lang, pname: str, prefix: str, cosine: bool,
                 domain: Array) -> list[str]:
     """The BRDF at directions L, V by the one definition of
-    :meth:`ratfit.brdf.fitter.BRDFFit.coords`: of the pair and its images under
-    reciprocity (and the mirror y -> -y for all but full parametrizations), the first
-    nearest to the domain box, clipped into it; the fit's validity proof covers those
-    points."""
+    :meth:`ratfit.brdf.fitter.BRDFFit.coords`: of the pair and its images (for all but
+    full parametrizations the mirror y -> -y, then L <-> V and its mirror; for full
+    ones L <-> V), the first nearest to the domain box, clipped into it; the fit's
+    validity proof covers those points."""
     from ratfit.brdf.parametrizations import get_parametrization
 
     ncand = 2 if get_parametrization(pname).invariant == "full" else 4
@@ -689,7 +689,8 @@ def _brdf_lines(lang: _Lang, pname: str, prefix: str, cosine: bool,
                f"    lo = ({lo},)", f"    hi = ({hi},)",
                "    lf, vf = (L[0], -L[1], L[2]), (V[0], -V[1], V[2])",
                "    best, gap = None, math.inf",
-               f"    for a, b in ((L, V), (V, L), (lf, vf), (vf, lf))[:{ncand}]:",
+               ("    for a, b in ((L, V), (V, L)):" if ncand == 2 else
+                "    for a, b in ((L, V), (lf, vf), (V, L), (vf, lf)):"),
                f"        x = {prefix}_coords(a, b)",
                "        g = 0.0",
                "        for i in range(RATFIT_DIM):",
@@ -722,10 +723,14 @@ def _brdf_lines(lang: _Lang, pname: str, prefix: str, cosine: bool,
                 f"    float gap = {big};"]
     nan = "x[i] != x[i]" if c else "isnan(x[i])"
     out += [f"    for (int k = 0; k < {ncand}; ++k) {{",
-            f"        {r} s = k >= 2 ? -1.0 : 1.0;",
+            # images in BRDFFit.coords' order: (L, V), mirror, (V, L), its mirror (4);
+            # (L, V), (V, L) (2)
+            (f"        {r} s = (k % 2 == 1) ? -1.0 : 1.0;" if ncand == 4 else
+             f"        {r} s = 1.0;"),
+            f"        {'int' if c else 'bool'} swap = {'k >= 2' if ncand == 4 else 'k == 1'};",
             "        for (int i = 0; i < 3; ++i) {",
-            "            a[i] = (k % 2 == 0) ? L[i] : V[i];",
-            "            b[i] = (k % 2 == 0) ? V[i] : L[i];",
+            "            a[i] = swap ? V[i] : L[i];",
+            "            b[i] = swap ? L[i] : V[i];",
             "        }",
             "        a[1] *= s;", "        b[1] *= s;",
             f"        {prefix}_coords(a, b, x);",
