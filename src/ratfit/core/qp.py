@@ -65,6 +65,9 @@ class ChannelPoints:
         self.hi = np.ascontiguousarray(seg.hi[:, channel])
         self.n_points = seg.n_points
         self.order = np.lexsort(self.t.T[::-1])  # sorted along x0, then x1, ...
+        # the weighted forms' row scales (segment_scales) and the bounds divided by
+        # them: the same for every split of the channel, so computed once, on first use
+        self._scaled: tuple[Array, Array, Array] | None = None
         # orthonormal bases on (subsets of) the points, by the subset's size
         self._bases: dict[int, tuple[NDArray[np.int64], Array]] = {}
         self._spread: dict[int, NDArray[np.int64]] = {}
@@ -92,6 +95,18 @@ class ChannelPoints:
                 Q = ArnoldiBasis.build(self.space, t, np.ones(pick.size), k)[1]
             self._bases[pick.size] = (pick.copy(), Q)
             return Q
+
+    def scaled_bounds(self) -> tuple[Array, Array, Array]:
+        """(s, lo / s, hi / s) with s = :func:`segment_scales` (lo, hi): computed once
+        per channel and shared by its splits' systems (read-only)."""
+        with self._lock:
+            if self._scaled is None:
+                scale = segment_scales(self.lo, self.hi)
+                out = (scale, self.lo / scale, self.hi / scale)
+                for a in out:
+                    a.setflags(write=False)
+                self._scaled = out
+            return self._scaled
 
     def spread_subset(self, size: int) -> NDArray[np.int64]:
         """``size`` points spread along the data, plus the extreme segments."""
@@ -848,14 +863,13 @@ class ArnoldiSystem:
         self.n_points = self.points.n_points
         self._order = self.points.order
         self.n, self.m = n, m
-        self.scale = segment_scales(self.lo, self.hi)
-        self.lo_s = self.lo / self.scale
-        self.hi_s = self.hi / self.scale
+        self.scale, self.lo_s, self.hi_s = self.points.scaled_bounds()
         large = self.n_points > 4 * BASIS_POINTS
         sub = self.points.spread_subset(BASIS_POINTS) if large else None
         self._v: Array | None = None
         # the guess, its floor and the largest weight (None: weights from values)
         self._q0: tuple[Callable[[Array], Array], float, float] | None = None
+        qs_sub: Array | None = None  # the guess at the points of S, evaluated once
         if callable(q0):
             at = self.t if sub is None else self.t[sub]
             with np.errstate(all="ignore"):
@@ -869,6 +883,8 @@ class ArnoldiSystem:
                 self._q0 = (q0, floor, vmax)
                 if sub is None:
                     self._v = self._weights(qs)
+                else:
+                    qs_sub = qs
             else:
                 q0 = None
             if q0 is None:
@@ -884,7 +900,9 @@ class ArnoldiSystem:
         # screened on S first and checked on every row once S is met.
         self.sub: NDArray[np.int64] | None = None
         if sub is not None:
-            vs = self._v_at(sub)
+            # (the guess's values at S were evaluated above: the same numbers as
+            # _v_at(sub) would compute again)
+            vs = self._v_at(sub) if qs_sub is None else self._weights(qs_sub)
             try:
                 self.p_basis, U = ArnoldiBasis.build(space, self.t[sub], vs / self.scale[sub], n)
                 self.q_basis, V = ArnoldiBasis.build(space, self.t[sub], vs, m)
