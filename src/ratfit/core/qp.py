@@ -48,6 +48,84 @@ _CHUNK = 32_768
 # Large data (more than 4x this many points): Arnoldi bases built on this many
 # points spread over the data (see ArnoldiSystem).
 BASIS_POINTS = 16_384
+# Large data: bytes of weighted design (every point's rows of a split, kept in chunks
+# of _CHUNK points for the next active-set rounds of that split) that the systems of
+# the whole process may hold at once. A chunk over it is computed again at each
+# round (the same numbers). Two channels searched side by side held a (50, 50)
+# split's 890 MB each at once: 2.6 GB peak on a full MERL table.
+DESIGN_BUDGET = 1 << 30
+
+
+class _Budget:
+    """Bytes the systems of this process hold (thread-safe)."""
+
+    def __init__(self, limit: int) -> None:
+        self.limit, self.used = int(limit), 0
+        self._lock = threading.Lock()
+
+    def take(self, nbytes: int) -> int:
+        """Up to ``nbytes`` of what is left: the bytes granted (0 when none is)."""
+        with self._lock:
+            grant = max(min(int(nbytes), self.limit - self.used), 0)
+            self.used += grant
+            return grant
+
+    def give(self, nbytes: int) -> None:
+        with self._lock:
+            self.used -= nbytes
+
+
+_DESIGN_BUDGET = _Budget(DESIGN_BUDGET)
+# floats per alignment unit of the kept chunks (64 bytes)
+_ALIGN = 8
+
+
+class _ChunkStore:
+    """A split's weighted design chunks, kept in one buffer of what
+    :data:`DESIGN_BUDGET` granted (one allocation, handed back whole to the system
+    when released: chunks allocated one by one stayed in the allocator's per-thread
+    heaps, 2.8 GB resident on a full MERL table); the bytes go back to the budget when
+    the store is cleared or dropped."""
+
+    def __init__(self) -> None:
+        self.chunks: dict[int, tuple[Array, Array]] = {}
+        self.buf: Array | None = None
+        self.nbytes = 0
+        self.used = 0  # floats of buf filled
+
+    def reserve(self, nbytes: int) -> None:
+        """Ask the budget for ``nbytes`` (what every chunk needs) once."""
+        if self.buf is None and nbytes > 0:
+            grant = _DESIGN_BUDGET.take(nbytes)
+            self.nbytes = grant
+            self.buf = np.empty(grant // 8) if grant else np.zeros(0)
+
+    def keep(self, i: int, pair: tuple[Array, Array]) -> None:
+        """A copy of chunk ``i`` (F-ordered, 64-byte aligned) if the buffer has room."""
+        if self.buf is None:
+            return
+        base = (-self.buf.ctypes.data // 8) % _ALIGN  # first aligned float of buf
+        views = []
+        at = self.used
+        for a in pair:
+            at = base + -(-(at - base) // _ALIGN) * _ALIGN if at > base else base
+            if at + a.size > self.buf.size:
+                return
+            view = self.buf[at:at + a.size].reshape(a.shape, order="F")
+            view[...] = a
+            views.append(view)
+            at += a.size
+        self.used = at
+        self.chunks[i] = (views[0], views[1])
+
+    def clear(self) -> None:
+        self.chunks.clear()
+        self.buf = None
+        _DESIGN_BUDGET.give(self.nbytes)
+        self.nbytes = self.used = 0
+
+    def __del__(self) -> None:
+        self.clear()
 
 
 class ChannelPoints:
@@ -293,8 +371,33 @@ def solve_fixed(
 
     ``deadline`` (a ``time.perf_counter()`` value): no round starts after it and
     DAQP gets the time left; the attempt is then "failed" with ``timed_out``
-    set (a split cut short proves nothing).
+    set (a split cut short proves nothing). A system with a ``release`` method
+    (large data: what it kept of its rows at every point) is released at the end.
     """
+    try:
+        return _solve_rounds(system, n, m, solver=solver, cross_check=cross_check,
+                             active_set=active_set, max_rounds=max_rounds,
+                             warm_rows=warm_rows, deadline=deadline)
+    finally:
+        # what a system kept for the rounds (large data: its rows at every point)
+        release = getattr(system, "release", None)
+        if release is not None:
+            release()
+
+
+def _solve_rounds(
+    system: RowSystem,
+    n: int,
+    m: int,
+    *,
+    solver: str = "quadprog",
+    cross_check: str = "orth",
+    active_set: bool | None = None,
+    max_rounds: int = 100,
+    warm_rows: NDArray[np.int64] | None = None,
+    deadline: float | None = None,
+) -> Attempt:
+    """The active-set rounds of :func:`solve_fixed`."""
     t0 = time.perf_counter()
     system.prepare(n, m)
     delta, smin, smax = system.conditioning(n, m)
@@ -914,7 +1017,8 @@ class ArnoldiSystem:
             self.p_basis, U = ArnoldiBasis.build(space, self.t, v / self.scale, n)
             self.q_basis, V = ArnoldiBasis.build(space, self.t, v, m)
         self._U, self._V = U, V  # orthonormal columns on S (or on every point)
-        self._full: tuple[Array, Array] | None = None  # large data: U, V at every point
+        # large data: U, V at every point, per chunk (as far as the budget goes)
+        self._store = _ChunkStore()
         self._cond = self._conditioning()
         self._norms: Array | None = None
 
@@ -953,10 +1057,10 @@ class ArnoldiSystem:
         return self._V if self.sub is None else self._design(np.arange(self.n_points))[1]
 
     def _design(self, pts: NDArray[np.int64]) -> tuple[Array, Array]:
+        # (large data: always computed here, never taken from the kept chunks, so that
+        # a row's numbers do not depend on what the budget let this split keep)
         if self.sub is None:
             return self._U[pts], self._V[pts]
-        if self._full is not None:
-            return self._full[0][pts], self._full[1][pts]
         t = self.t[pts]
         v = self._v_at(pts)
         return ((v / self.scale[pts])[:, None] * self.p_basis.design(t, self.n, window=True),
@@ -1026,27 +1130,42 @@ class ArnoldiSystem:
 
     def _pq(self, c: Array) -> tuple[Array, Array, Array, Array]:
         """Weighted p, q and the squared row norms of both parts at every point
-        (in chunks of points for large data: no N x k matrix is kept)."""
+        (in chunks of points for large data: no N x k matrix is formed)."""
         if self.sub is None:
             U, V = self._U, self._V
             return U @ c[:self.n], V @ c[self.n:], np.sum(U**2, 1), np.sum(V**2, 1)
-        if self._full is None:
-            # A candidate met the rows of S: the split is worth the matrices at every
-            # point (kept for the next rounds of this split: one evaluation, not one
-            # per round).
-            # Fortran order, filled by slices: the blocks come in that order (a
-            # C-order target made every chunk a strided, transposing copy)
-            U = np.empty((self.n_points, self.n), order="F")
-            V = np.empty((self.n_points, self.m), order="F")
-            for start in range(0, self.n_points, _CHUNK):
-                stop = min(start + _CHUNK, self.n_points)
-                U[start:stop], V[start:stop] = self._design(np.arange(start, stop))
-            self._full = (U, V)
-        U, V = self._full
-        if self._norms is not None:  # the squares are only needed once
-            return U @ c[:self.n], V @ c[self.n:], np.zeros(0), np.zeros(0)
-        return (U @ c[:self.n], V @ c[self.n:], np.einsum("ij,ij->i", U, U),
-                np.einsum("ij,ij->i", V, V))
+        # A candidate met the rows of S: every point's rows, chunk by chunk. Chunks
+        # are kept for the next rounds of this split as far as DESIGN_BUDGET goes (one
+        # evaluation, not one per round); the others are computed again each round,
+        # the same numbers, so what is kept changes the time only. The weights v at
+        # every point are kept whatever the budget (one vector).
+        _ = self.v
+        a, b = c[:self.n], c[self.n:]
+        N = self.n_points
+        p, q = np.empty(N), np.empty(N)
+        squares = self._norms is None  # the squares are only needed once
+        uu, vv = (np.empty(N), np.empty(N)) if squares else (np.zeros(0), np.zeros(0))
+        store = self._store
+        # every chunk's floats, with room to align each (what the budget grants of it)
+        chunks = -(-N // _CHUNK)
+        store.reserve(8 * (N * (self.n + self.m) + 2 * _ALIGN * (chunks + 1)))
+        for i, start in enumerate(range(0, N, _CHUNK)):
+            stop = min(start + _CHUNK, N)
+            pair = store.chunks.get(i)
+            if pair is None:
+                pair = self._design(np.arange(start, stop))
+                store.keep(i, pair)
+            U, V = pair
+            p[start:stop], q[start:stop] = U @ a, V @ b
+            if squares:
+                uu[start:stop] = np.einsum("ij,ij->i", U, U)
+                vv[start:stop] = np.einsum("ij,ij->i", V, V)
+        return p, q, uu, vv
+
+    def release(self) -> None:
+        """Drop the kept chunks (the rounds of :func:`solve_fixed` are over); they are
+        computed again if asked for."""
+        self._store.clear()
 
     def _set_norms(self, uu: Array, vv: Array) -> None:
         if self._norms is None:
