@@ -52,8 +52,9 @@ BASIS_POINTS = 16_384
 # of _CHUNK points for the next active-set rounds of that split) that the systems of
 # the whole process may hold at once. A chunk over it is computed again at each
 # round (the same numbers). Two channels searched side by side held a (50, 50)
-# split's 890 MB each at once: 2.6 GB peak on a full MERL table.
-DESIGN_BUDGET = 1 << 30
+# split's 890 MB each at once: 2.6 GB peak on a full MERL table; 1.7 GB with this
+# budget (1 GiB: 2.0 GB).
+DESIGN_BUDGET = 768 << 20
 
 
 class _Budget:
@@ -1164,8 +1165,15 @@ class ArnoldiSystem:
 
     def release(self) -> None:
         """Drop the kept chunks (the rounds of :func:`solve_fixed` are over); they are
-        computed again if asked for."""
+        computed again if asked for. After a pass over every point, the heap memory its
+        temporaries freed goes back to the system
+        (:func:`ratfit.core.memory.release_free_memory`)."""
+        passed = self._store.buf is not None
         self._store.clear()
+        if passed:
+            from ratfit.core.memory import release_free_memory
+
+            release_free_memory()
 
     def _set_norms(self, uu: Array, vv: Array) -> None:
         if self._norms is None:
