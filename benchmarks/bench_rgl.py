@@ -12,12 +12,19 @@ and 95th percentile of |f - y| / max(y, 1e-3 1/sr). Goal (issue 28): median < 5 
 and p95 < 25 % in every channel with at most 675 numbers in all.
 
     nice -n 10 python benchmarks/bench_rgl.py [--only NAME ...] [--limit N] [--timeout 400]
-        [--pairs 100000] [--data DIR]
+        [--pairs 100000] [--data DIR] [--baseline SRC]
 
 A material whose fit runs past --timeout, or exits without a fit file, is reported
 as such (no errors). ``--known`` runs first a material known in closed form, the
 Lambert + two GGX lobes of bench_merl.py, written and fitted the same way (issue 28:
 back within 5 % median and 25 % at the 95th percentile).
+
+``--baseline SRC`` (the ``src`` folder of another checkout, e.g. main's) fits each table
+with that code too, in the same run, just before this code's fit: a second row per
+channel, the ratios of this code's seconds, CPU seconds (user + system of the fit's
+process, less sensitive to other processes than the wall time) and peak memory to the
+baseline's, and whether the two fits' coefficients are identical. The load average
+before each fit is printed.
 """
 
 from __future__ import annotations
@@ -55,8 +62,9 @@ except subprocess.TimeoutExpired:
     so, se = p.communicate()
     rc = None
 dt = time.perf_counter() - t0
-rss = resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss / 1024.0
-print(json.dumps({"rc": rc, "seconds": dt, "peak_mb": rss, "stdout": so[-20000:],
+use = resource.getrusage(resource.RUSAGE_CHILDREN)
+print(json.dumps({"rc": rc, "seconds": dt, "peak_mb": use.ru_maxrss / 1024.0,
+                  "cpu": use.ru_utime + use.ru_stime, "stdout": so[-20000:],
                   "stderr": se[-2000:]}))
 """
 
@@ -93,6 +101,12 @@ def coef_counts(fit_path: Path) -> list[int]:
     return [c.rational.n + c.rational.m for c in load_fit(fit_path).channels]
 
 
+def coefficients(fit_path: Path) -> list[tuple[list[float], list[float]]]:
+    """Each channel's stored (p, q), as the fit file has them."""
+    doc = json.loads(fit_path.read_text())
+    return [(list(c["p"]), list(c["q"])) for c in doc["channels"]]
+
+
 class KnownMaterial:
     """bench_merl.py's Lambert + two GGX lobes, shaped like an encoded material."""
 
@@ -107,7 +121,10 @@ class KnownMaterial:
     __call__ = eval_dirs
 
 
-def run_one(npz: Path | None, timeout: float, n_pairs: int) -> dict:
+def run_one(npz: Path | None, timeout: float, n_pairs: int,
+            baseline: Path | None = None) -> list[dict]:
+    """The material's fit by this code; with ``baseline`` (a src folder) first by
+    that code, on the same table."""
     from ratfit.brdf.io import merl_from_function, write_merl
     from ratfit.brdf.nbrdf import load_nbrdf
 
@@ -115,30 +132,58 @@ def run_one(npz: Path | None, timeout: float, n_pairs: int) -> dict:
     with tempfile.TemporaryDirectory(prefix="bench_rgl_") as tmp:
         table = Path(tmp) / f"{net.name}.binary"
         write_merl(table, merl_from_function(net))
-        out = Path(tmp) / "fit.json"
-        env = {**os.environ, "PYTHONPATH": str(REPO / "src")}
-        res = subprocess.run([sys.executable, "-c", _CHILD, str(table), str(out), str(timeout)],
-                             capture_output=True, text=True, env=env, check=True)
-        child = json.loads(res.stdout)
-        row = {"name": net.name, "rc": child["rc"], "seconds": child["seconds"],
-               "peak_mb": child["peak_mb"], "weights": net.n_weights}
+        srcs = ([("baseline", baseline)] if baseline is not None else []) + [
+            ("this", REPO / "src")]
+        return [fit_one(net, table, Path(tmp) / f"fit_{label}.json", timeout, n_pairs, src,
+                        label) for label, src in srcs]
+
+
+def fit_one(net, table: Path, out: Path, timeout: float, n_pairs: int, src: Path,
+            label: str) -> dict:
+    """``ratfit brdf fit TABLE`` with the code in ``src``, scored against ``net``."""
+    load = os.getloadavg()[0]
+    env = {**os.environ, "PYTHONPATH": str(src)}
+    res = subprocess.run([sys.executable, "-c", _CHILD, str(table), str(out), str(timeout)],
+                         capture_output=True, text=True, env=env, check=True)
+    child = json.loads(res.stdout)
+    row = {"name": net.name, "rc": child["rc"], "seconds": child["seconds"],
+           "peak_mb": child["peak_mb"], "cpu": child["cpu"], "weights": net.n_weights,
+           "code": label, "load": load}
+    try:
+        summary = json.loads(child["stdout"]) if child["stdout"].strip() else {}
+    except json.JSONDecodeError:
+        summary = {}
+    row["summary_success"] = summary.get("success")
+    if isinstance(summary.get("n"), list) and isinstance(summary.get("m"), list):
+        pairs = zip(summary["n"], summary["m"], strict=True)
+        row["coefs"] = [int(a) + int(b) for a, b in pairs]
+    if child["rc"] is not None and child["rc"] != 0:
+        row["why"] = child["stderr"].strip().splitlines()[-1:] or ["?"]
+    if out.exists():
+        row["coefs"] = coef_counts(out)
+        row["coefficients"] = coefficients(out)
         try:
-            summary = json.loads(child["stdout"]) if child["stdout"].strip() else {}
-        except json.JSONDecodeError:
-            summary = {}
-        row["summary_success"] = summary.get("success")
-        if isinstance(summary.get("n"), list) and isinstance(summary.get("m"), list):
-            pairs = zip(summary["n"], summary["m"], strict=True)
-            row["coefs"] = [int(a) + int(b) for a, b in pairs]
-        if child["rc"] is not None and child["rc"] != 0:
-            row["why"] = child["stderr"].strip().splitlines()[-1:] or ["?"]
-        if out.exists():
-            row["coefs"] = coef_counts(out)
-            try:
-                row["errors"] = errors(out, net, n_pairs)
-            except Exception as exc:  # report it in the table, keep benchmarking
-                row["why"] = [f"evaluation failed: {type(exc).__name__}: {exc}"]
+            row["errors"] = errors(out, net, n_pairs)
+        except Exception as exc:  # report it in the table, keep benchmarking
+            row["why"] = [f"evaluation failed: {type(exc).__name__}: {exc}"]
     return row
+
+
+def compare_coefficients(a: list | None, b: list | None) -> str:
+    """Whether two fits' stored coefficients are identical, else how far apart."""
+    if a is None or b is None:
+        return "no fit to compare coefficients with"
+    if a == b:
+        return "coefficients identical"
+    parts = []
+    for (pa, qa), (pb, qb) in zip(a, b, strict=True):
+        if (len(pa), len(qa)) != (len(pb), len(qb)):
+            parts.append("other (n, m)")
+            continue
+        ca, cb = np.r_[pa, qa], np.r_[pb, qb]
+        parts.append(f"{np.abs(ca - cb).max() / np.abs(ca).max():.1e}")
+    return "coefficients differ (per channel, max |difference| / max |coefficient|: " \
+        + ", ".join(parts) + ")"
 
 
 def fmt_pct(x: float) -> str:
@@ -154,8 +199,13 @@ def main() -> None:
     ap.add_argument("--pairs", type=int, default=100_000, help="random direction pairs")
     ap.add_argument("--known", action="store_true",
                     help="first the closed-form Lambert + 2 GGX material of bench_merl.py")
+    ap.add_argument("--baseline", type=Path, metavar="SRC",
+                    help="also fit each table with the code in SRC (another checkout's "
+                         "src folder), just before this code; ratios this / baseline")
     add_markdown_option(ap)
     args = ap.parse_args()
+    if args.baseline is not None and not (args.baseline / "ratfit").is_dir():
+        sys.exit(f"error: --baseline {args.baseline}: no ratfit package in it")
 
     files = sorted(args.data.glob("*.npz"))
     if args.only:  # in the order given
@@ -170,38 +220,58 @@ def main() -> None:
     runs += files
 
     rep = report(args, __file__)
-    header = ["material", "ch", "n+m", "med% all", "p95% all", "med% c>.1", "p95% c>.1",
-              "s", "peak MB", "verified"]
+    compare = args.baseline is not None
+    header = ["material", *(["code"] if compare else []), "ch", "n+m", "med% all",
+              "p95% all", "med% c>.1", "p95% c>.1", "s", "cpu s", "peak MB", "load",
+              "verified"]
     rows = []
+    ratios = []
     met = 0
     for npz in runs:
-        r = run_one(npz, args.timeout, args.pairs)
-        ok_fit = r["rc"] == 0 and "errors" in r
-        status = ("yes" if ok_fit else
-                  f"timeout {args.timeout:.0f} s" if r["rc"] is None else f"no (exit {r['rc']})")
-        print(f"{r['name']}: {status}, {r['seconds']:.0f} s", file=sys.stderr, flush=True)
-        if "errors" not in r:
-            nm = "/".join(map(str, r["coefs"])) if r.get("coefs") else "-"
-            why = f" [{r['why'][0][:120]}]" if r.get("why") else ""
-            rows.append([r["name"], "RGB", nm, "-", "-", "-", "-", f"{r['seconds']:.0f}",
-                         f"{r['peak_mb']:.0f}", status + why])
-            continue
-        e = r["errors"]
-        good = ok_fit and sum(r["coefs"]) <= (MAX_NUMBERS if r["weights"] else 10**9)
-        for c, ch in enumerate("RGB"):
-            med, p95 = e["all"][0, c], e["all"][1, c]
-            good = good and med < 0.05 and p95 < 0.25
-            rows.append([r["name"], ch, str(r["coefs"][c]), fmt_pct(med), fmt_pct(p95),
-                         fmt_pct(e["cos>0.1"][0, c]), fmt_pct(e["cos>0.1"][1, c]),
-                         f"{r['seconds']:.0f}", f"{r['peak_mb']:.0f}", status])
-        met += good and npz is not None
+        fits = run_one(npz, args.timeout, args.pairs, args.baseline)
+        for r in fits:
+            ok_fit = r["rc"] == 0 and "errors" in r
+            status = ("yes" if ok_fit else f"timeout {args.timeout:.0f} s" if r["rc"] is None
+                      else f"no (exit {r['rc']})")
+            print(f"{r['name']} ({r['code']}): {status}, {r['seconds']:.0f} s",
+                  file=sys.stderr, flush=True)
+            code = [r["code"]] if compare else []
+            common = [f"{r['seconds']:.0f}", f"{r['cpu']:.0f}", f"{r['peak_mb']:.0f}",
+                      f"{r['load']:.1f}"]
+            if "errors" not in r:
+                nm = "/".join(map(str, r["coefs"])) if r.get("coefs") else "-"
+                why = f" [{r['why'][0][:120]}]" if r.get("why") else ""
+                rows.append([r["name"], *code, "RGB", nm, "-", "-", "-", "-", *common,
+                             status + why])
+                continue
+            e = r["errors"]
+            good = ok_fit and sum(r["coefs"]) <= (MAX_NUMBERS if r["weights"] else 10**9)
+            for c, ch in enumerate("RGB"):
+                med, p95 = e["all"][0, c], e["all"][1, c]
+                good = good and med < 0.05 and p95 < 0.25
+                rows.append([r["name"], *code, ch, str(r["coefs"][c]), fmt_pct(med),
+                             fmt_pct(p95), fmt_pct(e["cos>0.1"][0, c]),
+                             fmt_pct(e["cos>0.1"][1, c]), *common, status])
+            met += good and npz is not None and r["code"] == "this"
+        if compare and len(fits) == 2:
+            base, this = fits
+            same = compare_coefficients(base.get("coefficients"), this.get("coefficients"))
+            ratios.append(f"{this['name']}: this / baseline: "
+                          f"{this['seconds'] / base['seconds']:.2f} s, "
+                          f"{this['cpu'] / base['cpu']:.2f} cpu s, "
+                          f"{this['peak_mb'] / base['peak_mb']:.2f} peak MB; {same}")
+    note = (f"{met} of {len(files)} materials verified with median < 5 % and p95 < 25 % (all "
+            f"pairs) in every channel and <= {MAX_NUMBERS} numbers.")
+    if ratios:
+        note += (f" Baseline: the code in {args.baseline}, run just before this code on the "
+                 "same table. " + " ".join(ratios))
     rep.table(f"default `ratfit brdf fit TABLE -o fit.json` on full MERL tables; timeout "
               f"{args.timeout:.0f} s; {args.pairs} seeded pairs, L and V uniform on the "
               f"hemisphere (all) or on the cap cos >= 0.1 (c>.1); rel = |f - y| / max(y, "
-              f"{FLOOR:g})", header, rows,
-              note=f"{met} of {len(files)} materials verified with median < 5 % and p95 < "
-                   f"25 % (all pairs) in every channel and <= {MAX_NUMBERS} numbers.")
+              f"{FLOOR:g}); s: wall seconds of the fit's process, cpu s: its user + system "
+              "seconds, load: the 1-minute load average before it", header, rows, note=note)
     rep.write()
+
 
 if __name__ == "__main__":
     main()

@@ -136,3 +136,37 @@ def test_an_interrupted_channel_thread_stops_the_others() -> None:
     cancel.set()
     with pytest.raises(KeyboardInterrupt):
         run.test_many([(4, 2)])
+
+
+@pytest.mark.slow
+def test_kept_rows_change_the_time_not_the_fit(shared_data: Path, monkeypatch) -> None:
+    """Large data: a split's rows at every point are kept per chunk only as far as the
+    process's DESIGN_BUDGET goes, the rest computed again each round. With nothing
+    kept, everything kept or a few chunks kept, the same coefficients come out, and the
+    budget is all given back."""
+    ds = _exr(shared_data, 800)
+    monkeypatch.setattr(qp, "BASIS_POINTS", 160)  # 800 > 4 x 160: rows on demand
+    monkeypatch.setattr(qp, "_CHUNK", 64)  # 13 chunks
+    fits = {}
+    kept = []
+    real_keep = qp._ChunkStore.keep
+
+    def keep(self, i, pair):
+        real_keep(self, i, pair)
+        kept.append(i in self.chunks)
+
+    monkeypatch.setattr(qp._ChunkStore, "keep", keep)
+    for limit in (1 << 40, 0, 3 * 64 * 8 * 40):
+        monkeypatch.setattr(qp._DESIGN_BUDGET, "limit", limit)
+        kept.clear()
+        fitter, seg, _ = fit_brdf(ds, dt=0.22, jobs=1)
+        res = fitter.results_[0]
+        assert res.success
+        fits[limit] = (res.n, res.m, res.rational.p, res.rational.q)
+        assert qp._DESIGN_BUDGET.used == 0
+        # what the budget allowed: every chunk, none, some
+        assert kept and (all(kept) if limit == 1 << 40 else not all(kept))
+        assert any(kept) == (limit != 0)
+    (a, *others) = fits.values()
+    for b in others:
+        assert b[:2] == a[:2] and np.array_equal(b[2], a[2]) and np.array_equal(b[3], a[3])

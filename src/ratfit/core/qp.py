@@ -48,6 +48,85 @@ _CHUNK = 32_768
 # Large data (more than 4x this many points): Arnoldi bases built on this many
 # points spread over the data (see ArnoldiSystem).
 BASIS_POINTS = 16_384
+# Large data: bytes of weighted design (every point's rows of a split, kept in chunks
+# of _CHUNK points for the next active-set rounds of that split) that the systems of
+# the whole process may hold at once. A chunk over it is computed again at each
+# round (the same numbers). Two channels searched side by side held a (50, 50)
+# split's 890 MB each at once: 2.6 GB peak on a full MERL table; 1.7 GB with this
+# budget (1 GiB: 2.0 GB).
+DESIGN_BUDGET = 768 << 20
+
+
+class _Budget:
+    """Bytes the systems of this process hold (thread-safe)."""
+
+    def __init__(self, limit: int) -> None:
+        self.limit, self.used = int(limit), 0
+        self._lock = threading.Lock()
+
+    def take(self, nbytes: int) -> int:
+        """Up to ``nbytes`` of what is left: the bytes granted (0 when none is)."""
+        with self._lock:
+            grant = max(min(int(nbytes), self.limit - self.used), 0)
+            self.used += grant
+            return grant
+
+    def give(self, nbytes: int) -> None:
+        with self._lock:
+            self.used -= nbytes
+
+
+_DESIGN_BUDGET = _Budget(DESIGN_BUDGET)
+# floats per alignment unit of the kept chunks (64 bytes)
+_ALIGN = 8
+
+
+class _ChunkStore:
+    """A split's weighted design chunks, kept in one buffer of what
+    :data:`DESIGN_BUDGET` granted (one allocation, handed back whole to the system
+    when released: chunks allocated one by one stayed in the allocator's per-thread
+    heaps, 2.8 GB resident on a full MERL table); the bytes go back to the budget when
+    the store is cleared or dropped."""
+
+    def __init__(self) -> None:
+        self.chunks: dict[int, tuple[Array, Array]] = {}
+        self.buf: Array | None = None
+        self.nbytes = 0
+        self.used = 0  # floats of buf filled
+
+    def reserve(self, nbytes: int) -> None:
+        """Ask the budget for ``nbytes`` (what every chunk needs) once."""
+        if self.buf is None and nbytes > 0:
+            grant = _DESIGN_BUDGET.take(nbytes)
+            self.nbytes = grant
+            self.buf = np.empty(grant // 8) if grant else np.zeros(0)
+
+    def keep(self, i: int, pair: tuple[Array, Array]) -> None:
+        """A copy of chunk ``i`` (F-ordered, 64-byte aligned) if the buffer has room."""
+        if self.buf is None:
+            return
+        base = (-self.buf.ctypes.data // 8) % _ALIGN  # first aligned float of buf
+        views = []
+        at = self.used
+        for a in pair:
+            at = base + -(-(at - base) // _ALIGN) * _ALIGN if at > base else base
+            if at + a.size > self.buf.size:
+                return
+            view = self.buf[at:at + a.size].reshape(a.shape, order="F")
+            view[...] = a
+            views.append(view)
+            at += a.size
+        self.used = at
+        self.chunks[i] = (views[0], views[1])
+
+    def clear(self) -> None:
+        self.chunks.clear()
+        self.buf = None
+        _DESIGN_BUDGET.give(self.nbytes)
+        self.nbytes = self.used = 0
+
+    def __del__(self) -> None:
+        self.clear()
 
 
 class ChannelPoints:
@@ -65,6 +144,9 @@ class ChannelPoints:
         self.hi = np.ascontiguousarray(seg.hi[:, channel])
         self.n_points = seg.n_points
         self.order = np.lexsort(self.t.T[::-1])  # sorted along x0, then x1, ...
+        # the weighted forms' row scales (segment_scales) and the bounds divided by
+        # them: the same for every split of the channel, so computed once, on first use
+        self._scaled: tuple[Array, Array, Array] | None = None
         # orthonormal bases on (subsets of) the points, by the subset's size
         self._bases: dict[int, tuple[NDArray[np.int64], Array]] = {}
         self._spread: dict[int, NDArray[np.int64]] = {}
@@ -92,6 +174,18 @@ class ChannelPoints:
                 Q = ArnoldiBasis.build(self.space, t, np.ones(pick.size), k)[1]
             self._bases[pick.size] = (pick.copy(), Q)
             return Q
+
+    def scaled_bounds(self) -> tuple[Array, Array, Array]:
+        """(s, lo / s, hi / s) with s = :func:`segment_scales` (lo, hi): computed once
+        per channel and shared by its splits' systems (read-only)."""
+        with self._lock:
+            if self._scaled is None:
+                scale = segment_scales(self.lo, self.hi)
+                out = (scale, self.lo / scale, self.hi / scale)
+                for a in out:
+                    a.setflags(write=False)
+                self._scaled = out
+            return self._scaled
 
     def spread_subset(self, size: int) -> NDArray[np.int64]:
         """``size`` points spread along the data, plus the extreme segments."""
@@ -278,8 +372,33 @@ def solve_fixed(
 
     ``deadline`` (a ``time.perf_counter()`` value): no round starts after it and
     DAQP gets the time left; the attempt is then "failed" with ``timed_out``
-    set (a split cut short proves nothing).
+    set (a split cut short proves nothing). A system with a ``release`` method
+    (large data: what it kept of its rows at every point) is released at the end.
     """
+    try:
+        return _solve_rounds(system, n, m, solver=solver, cross_check=cross_check,
+                             active_set=active_set, max_rounds=max_rounds,
+                             warm_rows=warm_rows, deadline=deadline)
+    finally:
+        # what a system kept for the rounds (large data: its rows at every point)
+        release = getattr(system, "release", None)
+        if release is not None:
+            release()
+
+
+def _solve_rounds(
+    system: RowSystem,
+    n: int,
+    m: int,
+    *,
+    solver: str = "quadprog",
+    cross_check: str = "orth",
+    active_set: bool | None = None,
+    max_rounds: int = 100,
+    warm_rows: NDArray[np.int64] | None = None,
+    deadline: float | None = None,
+) -> Attempt:
+    """The active-set rounds of :func:`solve_fixed`."""
     t0 = time.perf_counter()
     system.prepare(n, m)
     delta, smin, smax = system.conditioning(n, m)
@@ -848,14 +967,13 @@ class ArnoldiSystem:
         self.n_points = self.points.n_points
         self._order = self.points.order
         self.n, self.m = n, m
-        self.scale = segment_scales(self.lo, self.hi)
-        self.lo_s = self.lo / self.scale
-        self.hi_s = self.hi / self.scale
+        self.scale, self.lo_s, self.hi_s = self.points.scaled_bounds()
         large = self.n_points > 4 * BASIS_POINTS
         sub = self.points.spread_subset(BASIS_POINTS) if large else None
         self._v: Array | None = None
         # the guess, its floor and the largest weight (None: weights from values)
         self._q0: tuple[Callable[[Array], Array], float, float] | None = None
+        qs_sub: Array | None = None  # the guess at the points of S, evaluated once
         if callable(q0):
             at = self.t if sub is None else self.t[sub]
             with np.errstate(all="ignore"):
@@ -869,6 +987,8 @@ class ArnoldiSystem:
                 self._q0 = (q0, floor, vmax)
                 if sub is None:
                     self._v = self._weights(qs)
+                else:
+                    qs_sub = qs
             else:
                 q0 = None
             if q0 is None:
@@ -884,7 +1004,9 @@ class ArnoldiSystem:
         # screened on S first and checked on every row once S is met.
         self.sub: NDArray[np.int64] | None = None
         if sub is not None:
-            vs = self._v_at(sub)
+            # (the guess's values at S were evaluated above: the same numbers as
+            # _v_at(sub) would compute again)
+            vs = self._v_at(sub) if qs_sub is None else self._weights(qs_sub)
             try:
                 self.p_basis, U = ArnoldiBasis.build(space, self.t[sub], vs / self.scale[sub], n)
                 self.q_basis, V = ArnoldiBasis.build(space, self.t[sub], vs, m)
@@ -896,7 +1018,8 @@ class ArnoldiSystem:
             self.p_basis, U = ArnoldiBasis.build(space, self.t, v / self.scale, n)
             self.q_basis, V = ArnoldiBasis.build(space, self.t, v, m)
         self._U, self._V = U, V  # orthonormal columns on S (or on every point)
-        self._full: tuple[Array, Array] | None = None  # large data: U, V at every point
+        # large data: U, V at every point, per chunk (as far as the budget goes)
+        self._store = _ChunkStore()
         self._cond = self._conditioning()
         self._norms: Array | None = None
 
@@ -935,10 +1058,10 @@ class ArnoldiSystem:
         return self._V if self.sub is None else self._design(np.arange(self.n_points))[1]
 
     def _design(self, pts: NDArray[np.int64]) -> tuple[Array, Array]:
+        # (large data: always computed here, never taken from the kept chunks, so that
+        # a row's numbers do not depend on what the budget let this split keep)
         if self.sub is None:
             return self._U[pts], self._V[pts]
-        if self._full is not None:
-            return self._full[0][pts], self._full[1][pts]
         t = self.t[pts]
         v = self._v_at(pts)
         return ((v / self.scale[pts])[:, None] * self.p_basis.design(t, self.n, window=True),
@@ -1008,27 +1131,49 @@ class ArnoldiSystem:
 
     def _pq(self, c: Array) -> tuple[Array, Array, Array, Array]:
         """Weighted p, q and the squared row norms of both parts at every point
-        (in chunks of points for large data: no N x k matrix is kept)."""
+        (in chunks of points for large data: no N x k matrix is formed)."""
         if self.sub is None:
             U, V = self._U, self._V
             return U @ c[:self.n], V @ c[self.n:], np.sum(U**2, 1), np.sum(V**2, 1)
-        if self._full is None:
-            # A candidate met the rows of S: the split is worth the matrices at every
-            # point (kept for the next rounds of this split: one evaluation, not one
-            # per round).
-            # Fortran order, filled by slices: the blocks come in that order (a
-            # C-order target made every chunk a strided, transposing copy)
-            U = np.empty((self.n_points, self.n), order="F")
-            V = np.empty((self.n_points, self.m), order="F")
-            for start in range(0, self.n_points, _CHUNK):
-                stop = min(start + _CHUNK, self.n_points)
-                U[start:stop], V[start:stop] = self._design(np.arange(start, stop))
-            self._full = (U, V)
-        U, V = self._full
-        if self._norms is not None:  # the squares are only needed once
-            return U @ c[:self.n], V @ c[self.n:], np.zeros(0), np.zeros(0)
-        return (U @ c[:self.n], V @ c[self.n:], np.einsum("ij,ij->i", U, U),
-                np.einsum("ij,ij->i", V, V))
+        # A candidate met the rows of S: every point's rows, chunk by chunk. Chunks
+        # are kept for the next rounds of this split as far as DESIGN_BUDGET goes (one
+        # evaluation, not one per round); the others are computed again each round,
+        # the same numbers, so what is kept changes the time only. The weights v at
+        # every point are kept whatever the budget (one vector).
+        _ = self.v
+        a, b = c[:self.n], c[self.n:]
+        N = self.n_points
+        p, q = np.empty(N), np.empty(N)
+        squares = self._norms is None  # the squares are only needed once
+        uu, vv = (np.empty(N), np.empty(N)) if squares else (np.zeros(0), np.zeros(0))
+        store = self._store
+        # every chunk's floats, with room to align each (what the budget grants of it)
+        chunks = -(-N // _CHUNK)
+        store.reserve(8 * (N * (self.n + self.m) + 2 * _ALIGN * (chunks + 1)))
+        for i, start in enumerate(range(0, N, _CHUNK)):
+            stop = min(start + _CHUNK, N)
+            pair = store.chunks.get(i)
+            if pair is None:
+                pair = self._design(np.arange(start, stop))
+                store.keep(i, pair)
+            U, V = pair
+            p[start:stop], q[start:stop] = U @ a, V @ b
+            if squares:
+                uu[start:stop] = np.einsum("ij,ij->i", U, U)
+                vv[start:stop] = np.einsum("ij,ij->i", V, V)
+        return p, q, uu, vv
+
+    def release(self) -> None:
+        """Drop the kept chunks (the rounds of :func:`solve_fixed` are over); they are
+        computed again if asked for. After a pass over every point, the heap memory its
+        temporaries freed goes back to the system
+        (:func:`ratfit.core.memory.release_free_memory`)."""
+        passed = self._store.buf is not None
+        self._store.clear()
+        if passed:
+            from ratfit.core.memory import release_free_memory
+
+            release_free_memory()
 
     def _set_norms(self, uu: Array, vv: Array) -> None:
         if self._norms is None:

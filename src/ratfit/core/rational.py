@@ -11,6 +11,9 @@ precision. :meth:`RationalFunction.to_family` converts to the family.
 
 from __future__ import annotations
 
+import threading
+import weakref
+from collections.abc import Callable
 from typing import TYPE_CHECKING, overload
 
 import numpy as np
@@ -35,6 +38,59 @@ def _single_point(x: ArrayLike, dim: int) -> Array | None:
     if shape == () or (dim > 1 and shape == (dim,)):
         return np.asarray(x, dtype=float).reshape(1, dim)
     return None
+
+
+# Values of p and q at a large, read-only point array are kept for the next
+# evaluation of the same function at the same array (the polish scores the candidate
+# its verification has just evaluated; the metrics evaluate the fits the final proof
+# has just verified): each is a pass over every sample (~1 s per million points and
+# 50 coefficients). At most MEMO_ENTRIES values, from MEMO_MIN_POINTS points up.
+MEMO_ENTRIES = 8
+MEMO_MIN_POINTS = 65_536
+
+
+def _frozen(x: object) -> bool:
+    """``x`` is a large ndarray that nothing can write to: read-only, and so is every
+    array it is a view of (a read-only view of a writeable array may still change)."""
+    if not isinstance(x, np.ndarray) or x.ndim == 0 or x.shape[0] < MEMO_MIN_POINTS:
+        return False
+    a: object = x
+    while isinstance(a, np.ndarray):
+        if a.flags.writeable:
+            return False
+        a = a.base
+    return True
+
+
+class _ValuesMemo:
+    """The last :data:`MEMO_ENTRIES` evaluations (function, p or q, points, window)
+    -> values, keyed by the identity of the function and of the point array (both
+    held weakly, so an entry dies with either); a hit returns a copy of the same
+    numbers the evaluation would compute again."""
+
+    def __init__(self, entries: int) -> None:
+        self.entries = entries
+        self._items: list[tuple[weakref.ref, weakref.ref, str, bool, Array]] = []
+        self._lock = threading.Lock()
+
+    def get(self, rf: RationalFunction, which: str, x: ArrayLike, window: bool,
+            compute: Callable[[], Array]) -> Array:
+        if not _frozen(x):
+            return compute()
+        with self._lock:
+            for i, (fr, xr, w, win, vals) in enumerate(self._items):
+                if fr() is rf and xr() is x and w == which and win == window:
+                    self._items.append(self._items.pop(i))  # most recent last
+                    return vals.copy()
+        vals = compute()
+        with self._lock:
+            self._items = [e for e in self._items if e[0]() is not None and e[1]() is not None]
+            self._items.append((weakref.ref(rf), weakref.ref(x), which, window, vals.copy()))
+            del self._items[:-self.entries]
+        return vals
+
+
+_MEMO = _ValuesMemo(MEMO_ENTRIES)
 
 
 class RationalFunction:
@@ -93,10 +149,12 @@ class RationalFunction:
         return self.n + self.m
 
     def numerator(self, x: ArrayLike, *, window: bool = False) -> Array:
-        return (self.p_basis or self.space).evaluate(x, self.p, window=window)
+        return _MEMO.get(self, "p", x, window, lambda: np.asarray(
+            (self.p_basis or self.space).evaluate(x, self.p, window=window)))
 
     def denominator(self, x: ArrayLike, *, window: bool = False) -> Array:
-        return (self.q_basis or self.space).evaluate(x, self.q, window=window)
+        return _MEMO.get(self, "q", x, window, lambda: np.asarray(
+            (self.q_basis or self.space).evaluate(x, self.q, window=window)))
 
     def to_family(self) -> RationalFunction:
         """The same function with p and q in the space's family (exact up to

@@ -153,6 +153,12 @@ class AppendedRows:
     def prepare(self, n_max: int, m_max: int) -> None:
         self.base.prepare(n_max, m_max)
 
+    def release(self) -> None:
+        """What the base kept for a solve's rounds (see ``solve_fixed``)."""
+        release = getattr(self.base, "release", None)
+        if release is not None:
+            release()
+
     def conditioning(self, n: int, m: int) -> tuple[float, float, float]:
         return self.base.conditioning(n, m)
 
