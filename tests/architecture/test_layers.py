@@ -18,7 +18,7 @@ SRC = Path(__file__).resolve().parents[2] / "src" / "ratfit"
 
 # Lowest first. Packages sharing a layer must not import each other.
 LAYERS: list[set[str]] = [
-    {"_version", "errors", "_atomic", "_quiet", "_progress"},
+    {"_version", "errors", "_atomic", "_quiet", "_progress", "_lazy"},
     {"core"},
     {"fitting", "io"},
     {"cdf", "brdf"},

@@ -11,8 +11,9 @@ anything that needs only ``ratfit.jobs.common``) does not load the BRDF package.
 
 from __future__ import annotations
 
-import importlib
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
+
+from ratfit._lazy import lazy_names
 
 if TYPE_CHECKING:
     from ratfit.jobs.brdf import BRDFFitReport, BRDFFitRequest, fit_brdf_file
@@ -29,14 +30,4 @@ __all__ = ["BRDFFitReport", "BRDFFitRequest", "FitReport", "FitRequest", "Render
            "RenderRequest", "fit_brdf_file", "fit_file", "render_fit"]
 
 
-def __getattr__(name: str) -> Any:
-    module = _WHERE.get(name)
-    if module is None:
-        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-    value = getattr(importlib.import_module(f"{__name__}.{module}"), name)
-    globals()[name] = value
-    return value
-
-
-def __dir__() -> list[str]:
-    return sorted(set(globals()) | set(__all__))
+__getattr__, __dir__ = lazy_names(globals(), _WHERE)
