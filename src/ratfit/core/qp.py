@@ -386,19 +386,10 @@ def solve_fixed(
             release()
 
 
-def _solve_rounds(
-    system: RowSystem,
-    n: int,
-    m: int,
-    *,
-    solver: str = "quadprog",
-    cross_check: str = "orth",
-    active_set: bool | None = None,
-    max_rounds: int = 100,
-    warm_rows: NDArray[np.int64] | None = None,
-    deadline: float | None = None,
-) -> Attempt:
-    """The active-set rounds of :func:`solve_fixed`."""
+def _solve_rounds(system: RowSystem, n: int, m: int, *, solver: str, cross_check: str,
+                  active_set: bool | None, max_rounds: int,
+                  warm_rows: NDArray[np.int64] | None, deadline: float | None) -> Attempt:
+    """The active-set rounds of :func:`solve_fixed` (its defaults are the only ones)."""
     t0 = time.perf_counter()
     system.prepare(n, m)
     delta, smin, smax = system.conditioning(n, m)
