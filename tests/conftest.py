@@ -100,3 +100,53 @@ def lobe_on_sparse_grid():
     y = (0.1 + 0.5 * np.exp(-8 * (1 - c)))[:, None]
     return Dataset(x, y, None, None, ("theta_v", "theta_l", "delta_phi"), ("R",),
                    {"param_in": param})
+
+
+# ------------------------------------------------------------------- external tools, exports
+def need_tool(name: str, why: str) -> None:
+    """Skip when an external tool is missing on a developer's machine, with the reason;
+    under CI (CI=true, where .ci/run installs it) a missing tool is a failure."""
+    import shutil
+
+    if shutil.which(name):
+        return
+    msg = f"{name} not found on PATH: {why}"
+    if os.environ.get("CI", "").lower() in ("1", "true", "yes"):
+        pytest.fail(msg + " (CI installs it through .ci/run: fix the CI image)")
+    pytest.skip(msg)
+
+
+_BRDF_C_DRIVER = r"""
+#include <stdio.h>
+int main(void)
+{
+    double L[3], V[3], out[RATFIT_NCHANNELS];
+    while (scanf("%lf %lf %lf %lf %lf %lf", &L[0], &L[1], &L[2], &V[0], &V[1], &V[2]) == 6) {
+        ratfit_brdf(L, V, out);
+        for (int j = 0; j < RATFIT_NCHANNELS; ++j) printf("%.17g ", out[j]);
+        printf("\n");
+    }
+    return 0;
+}
+"""
+
+
+def exported_brdf_in_c(source: Path, L, V, folder: Path):
+    """``ratfit_brdf`` of the exported C file ``source`` at each pair (L, V): an array
+    (N, channels), compiled with gcc -Wall -Werror. ``from conftest import
+    exported_brdf_in_c``."""
+    import subprocess
+
+    import numpy as np
+
+    need_tool("gcc", "the exported C code is compiled and run with it")
+    src = folder / "brdf_main.c"
+    src.write_text(source.read_text() + _BRDF_C_DRIVER)
+    exe = folder / "brdf_main"
+    subprocess.run(["gcc", "-std=c99", "-O2", "-Wall", "-Werror", "-o", str(exe), str(src),
+                    "-lm"], check=True, capture_output=True)
+    rows = np.hstack([np.asarray(L, dtype=float), np.asarray(V, dtype=float)])
+    run = subprocess.run([str(exe)], input="\n".join(" ".join(repr(float(v)) for v in row)
+                                                     for row in rows),
+                         capture_output=True, text=True, check=True)
+    return np.array([[float(v) for v in ln.split()] for ln in run.stdout.strip().splitlines()])

@@ -7,13 +7,12 @@ from __future__ import annotations
 
 import importlib.util
 import json
-import shutil
-import subprocess
 from pathlib import Path
 from types import SimpleNamespace
 
 import numpy as np
 import pytest
+from conftest import exported_brdf_in_c
 
 from ratfit.brdf.fitter import BRDFFitter, load_brdf_fit
 from ratfit.brdf.parametrizations import get_parametrization
@@ -132,28 +131,9 @@ def test_every_evaluator_gives_the_same_nonnegative_value(tmp_path: Path) -> Non
                                                                strict=True)])
     np.testing.assert_allclose(got, ref[:3000], rtol=1e-6)
     # the exported C, on all of them
-    if shutil.which("gcc") is None:
-        pytest.skip("gcc not found: the C export is compiled with it")
     src = tmp_path / "f.c"
     export_fit(tmp_path / "fit.json", "c", src)
-    src.write_text(src.read_text() + """
-#include <stdio.h>
-int main(void)
-{
-    double L[3], V[3], out[RATFIT_NCHANNELS];
-    while (scanf("%lf %lf %lf %lf %lf %lf", &L[0], &L[1], &L[2], &V[0], &V[1], &V[2]) == 6) {
-        ratfit_brdf(L, V, out);
-        printf("%.17g\\n", out[0]);
-    }
-    return 0;
-}
-""")
-    exe = tmp_path / "f"
-    subprocess.run(["gcc", "-std=c99", "-O2", "-o", str(exe), str(src), "-lm"], check=True,
-                   capture_output=True)
-    inp = "\n".join(" ".join(repr(float(v)) for v in row) for row in np.hstack([L, V]))
-    out = subprocess.run([str(exe)], input=inp, capture_output=True, text=True, check=True)
-    c_vals = np.array(out.stdout.split(), dtype=float)
+    c_vals = exported_brdf_in_c(src, L, V, tmp_path)[:, 0]
     np.testing.assert_allclose(c_vals, ref, rtol=1e-6)
     assert np.all(c_vals >= 0)
     # theta_h = 0 is clipped to the box like any other pair outside it

@@ -10,11 +10,9 @@ compute the same number (one definition, ``BRDFFit.coords``).
 
 from __future__ import annotations
 
-import shutil
-import subprocess
-
 import numpy as np
 import pytest
+from conftest import exported_brdf_in_c
 
 from ratfit.brdf.fitter import brdf_fit_of, fit_brdf, save_brdf_fit
 from ratfit.brdf.parametrizations import get_parametrization
@@ -74,29 +72,6 @@ def test_the_exports_take_the_same_image(non_reciprocal, tmp_path):
     exec(compile(py.read_text(), str(py), "exec"), ns)
     got = np.array([ns["ratfit_brdf"](list(a), list(b))[0] for a, b in zip(L, V, strict=True)])
     np.testing.assert_allclose(got, ref, rtol=1e-9)
-    if not shutil.which("gcc"):
-        pytest.skip("gcc not found on PATH: the exported C code is compiled with it")
     c = tmp_path / "fit.c"
     export_fit(path, "c", c)
-    driver = r"""
-#include <stdio.h>
-int main(void)
-{
-    double L[3], V[3], out[RATFIT_NCHANNELS];
-    while (scanf("%lf %lf %lf %lf %lf %lf", &L[0], &L[1], &L[2], &V[0], &V[1], &V[2]) == 6) {
-        ratfit_brdf(L, V, out);
-        printf("%.17g\n", out[0]);
-    }
-    return 0;
-}
-"""
-    src = tmp_path / "main.c"
-    src.write_text(c.read_text() + driver)
-    exe = tmp_path / "main"
-    subprocess.run(["gcc", "-std=c99", "-O2", "-Wall", "-Werror", "-o", str(exe), str(src),
-                    "-lm"], check=True, capture_output=True)
-    run = subprocess.run([str(exe)], input="\n".join(
-        " ".join(repr(float(v)) for v in [*a, *b]) for a, b in zip(L, V, strict=True)),
-        capture_output=True, text=True, check=True)
-    got_c = np.array([float(v) for v in run.stdout.split()])
-    np.testing.assert_allclose(got_c, ref, rtol=1e-9)
+    np.testing.assert_allclose(exported_brdf_in_c(c, L, V, tmp_path)[:, 0], ref, rtol=1e-9)

@@ -4,14 +4,13 @@ glslangValidator) reproduce the saved fit; bad or unverified fit files are refus
 from __future__ import annotations
 
 import json
-import os
-import shutil
 import subprocess
 from pathlib import Path
 
 import numpy as np
 import pytest
 from click.testing import CliRunner
+from conftest import need_tool
 
 from ratfit.brdf.fitter import BRDFFit
 from ratfit.brdf.parametrizations import PARAMETRIZATIONS, get_parametrization
@@ -96,17 +95,6 @@ def _searched(x, dt, y=None, **params):
     res = RationalFitter(**params).fit(Segments.from_relative(x, y, dt)).results_
     assert all(r.success for r in res) and res[0].rational.orthonormal
     return parse_fit(json.loads(json.dumps(fit_document(res))))
-
-
-def need_tool(name: str, why: str) -> None:
-    """Skip when an external tool is missing on a developer's machine, with the reason;
-    under CI (CI=true, where .ci/run installs it) a missing tool is a failure."""
-    if shutil.which(name):
-        return
-    msg = f"{name} not found on PATH: {why}"
-    if os.environ.get("CI", "").lower() in ("1", "true", "yes"):
-        pytest.fail(msg + " (CI installs it through .ci/run: fix the CI image)")
-    pytest.skip(msg)
 
 
 def _run_c(tmp_path: Path, text: str, nin: int, call: str, pts: np.ndarray) -> np.ndarray:
