@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import os
 import time
+from collections.abc import Sequence
 from dataclasses import dataclass, replace
 from typing import Any, Self
 
@@ -52,7 +53,9 @@ from ratfit.fitting.search import RationalFitter, SearchParts, SystemFactory
 from ratfit.io.data import Dataset
 from ratfit.io.fitfile import SavedFit, fit_document, load_fit, save_fit
 
-__all__ = ["BRDF_SOLVER", "DEFAULT_DT", "DEFAULT_FLOOR_REL", "BRDFFit", "BRDFFitter",
+__all__ = ["AUTO_FLOOR", "BRDF_SOLVER", "DEFAULT_DT", "DEFAULT_FLOOR_REL", "BRDFFit",
+           "BRDFFitter", "NOISE_NEAR", "NOISE_QUANTILE", "close_pairs", "is_auto_floor",
+           "noise_floors",
            "HALF_VECTOR", "HALF_VECTOR_FLOOR_REL", "candidate_parametrizations",
            "default_floor_rel", "brdf_metrics", "fit_coefficients", "widened_dt", "brdf_segments",
            "check_floor_rel", "cos_theta_l", "default_dt", "fit_brdf", "fit_brdf_auto",
@@ -62,6 +65,8 @@ __all__ = ["BRDF_SOLVER", "DEFAULT_DT", "DEFAULT_FLOOR_REL", "BRDFFit", "BRDFFit
            "subset_status", "valid_grid"]
 
 Array = NDArray[np.float64]
+#: An absolute floor: one number, one per channel, or "auto" (:func:`noise_floors`).
+AbsWidth = float | str | Sequence[float] | Array | None
 # Segments when neither the command nor the file gives any: 5 % of each value, the
 # order of a gonioreflectometer's noise, widened where nearby samples need it, with a
 # floor for near-zero values. For a table of every cell (MERL) the floor is the noise
@@ -75,6 +80,14 @@ Array = NDArray[np.float64]
 # 15 min to exit 1 (2026-11-26); see docs/howto/brdf.md.
 DEFAULT_DT = 0.05
 DEFAULT_FLOOR_REL = 0.002
+#: ``abs_width`` that asks for each channel's noise level estimated from the data
+#: (:func:`noise_floors`): ``ratfit brdf fit --abs-width auto``.
+AUTO_FLOOR = "auto"
+#: :func:`noise_floors` reads the pairs of samples closer than this fraction of each
+#: axis's span (a goniometer's repeated or nearly repeated directions) ...
+NOISE_NEAR = 0.01
+#: ... and takes this quantile of their half differences as a channel's noise level.
+NOISE_QUANTILE = 0.9
 # For tables, default_dt widens DEFAULT_DT to what this quantile of nearly coincident
 # sample pairs needs to overlap (the pairs above it are widened one by one:
 # brdf/consistency.py); a network-encoded RGL table differs 10x over phi_d at
@@ -179,28 +192,63 @@ def default_dt(x: ArrayLike, y: ArrayLike, floor: float | ArrayLike = NOISE_FLOO
     Below 1, the pairs beyond the quantile are
     :func:`~ratfit.brdf.consistency.consistent_segments`' to reconcile one by one.
     """
-    from scipy.spatial import cKDTree
-
-    xa = np.asarray(x, dtype=float)
     ya = np.abs(np.asarray(y, dtype=float))
     if ya.ndim == 1:
         ya = ya[:, None]
-    if xa.shape[0] < 2:
+    first, second = close_pairs(x, near)
+    if not first.size:
         return DEFAULT_DT
-    lo, hi = xa.min(axis=0), xa.max(axis=0)
-    t = (xa - lo) / np.where(hi > lo, hi - lo, 1.0)
-    d, i = cKDTree(t).query(t, k=2, workers=-1)
-    close = d[:, 1] < near
-    if not close.any():
-        return DEFAULT_DT
-    j = i[close, 1]
-    a, b = ya[close], ya[j]
+    a, b = ya[first], ya[second]
     with np.errstate(divide="ignore", invalid="ignore"):
         need = np.maximum(np.abs(a - b) - 2 * np.asarray(floor, dtype=float), 0.0) / (a + b)
     need = np.where(np.isfinite(need), need, 0.0).max(axis=1)
     typical = float(np.quantile(need, quantile))
     # rounded up to a hundredth: a width a user can read and type
     return float(min(max(DEFAULT_DT, np.ceil(110.0 * typical) / 100.0), 0.9))
+
+
+def close_pairs(x: ArrayLike, near: float) -> tuple[NDArray[np.intp], NDArray[np.intp]]:
+    """(i, j): each sample i whose nearest other sample j lies closer than ``near``, a
+    fraction of each axis's span (for a smooth function, one point measured twice)."""
+    from scipy.spatial import cKDTree
+
+    xa = np.asarray(x, dtype=float)
+    if xa.ndim == 1:
+        xa = xa[:, None]
+    none = np.zeros(0, dtype=np.intp)
+    if xa.shape[0] < 2:
+        return none, none
+    lo, hi = xa.min(axis=0), xa.max(axis=0)
+    t = (xa - lo) / np.where(hi > lo, hi - lo, 1.0)
+    d, i = cKDTree(t).query(t, k=2, workers=-1)
+    close = d[:, 1] < near
+    return np.flatnonzero(close).astype(np.intp), i[close, 1].astype(np.intp)
+
+
+def noise_floors(x: ArrayLike, y: ArrayLike, *, near: float = NOISE_NEAR,
+                 quantile: float = NOISE_QUANTILE, least: float = NOISE_FLOOR) -> Array:
+    """Each channel's absolute noise level (k,), estimated from the data.
+
+    Two samples closer than ``near`` (a fraction of each axis's span) are one point
+    measured twice, so half their difference is noise: the level is the ``quantile`` of
+    those half differences, at least ``least`` (the level under which relative errors
+    stop counting), and ``least`` where no two samples are that close. Cornell's
+    garnet_red gives R/G/B 2.3e-3/1.5e-3/2.0e-3 1/sr, the order of its diffuse G and B
+    values (median 3e-3), which a fixed 1e-3 floor asked to follow within 10 %.
+    """
+    ya = np.asarray(y, dtype=float)
+    if ya.ndim == 1:
+        ya = ya[:, None]
+    first, second = close_pairs(x, near)
+    if not first.size:
+        return np.full(ya.shape[1], float(least))
+    half = np.abs(ya[first] - ya[second]) / 2
+    return np.maximum(np.quantile(half, quantile, axis=0), float(least))
+
+
+def is_auto_floor(abs_width: Any) -> bool:
+    """``abs_width`` asks for the noise level estimated from the data (:data:`AUTO_FLOOR`)."""
+    return isinstance(abs_width, str) and abs_width.strip().lower() == AUTO_FLOOR
 
 
 def default_floor_rel(param: str) -> float:
@@ -217,7 +265,7 @@ def is_table(ds: Dataset) -> bool:
     return str(ds.meta.get("format", "")).lower() == "merl"
 
 
-def check_floor_rel(dt: float | None, abs_width: float | None,
+def check_floor_rel(dt: float | None, abs_width: AbsWidth,
                     floor_rel: float | None) -> None:
     """Refuse a floor under no width: ``floor_rel`` alone makes every segment
     [y - f max, y + f max] with no relative part (``--floor-rel 1e-4`` gave segments
@@ -230,10 +278,10 @@ def check_floor_rel(dt: float | None, abs_width: float | None,
             "--abs-width for absolute segments")
 
 
-def resolve_widths(ds: Dataset, dt: float | None, abs_width: float | None,
+def resolve_widths(ds: Dataset, dt: float | None, abs_width: AbsWidth,
                    floor_rel: float | None, *, cosine: bool = False,
                    clamp: float | None = None
-                   ) -> tuple[float | None, float | None, float | None, bool]:
+                   ) -> tuple[float | None, AbsWidth, float | None, bool]:
     """(dt, abs_width, floor_rel, defaulted): the widths as given, or, when none is
     given and the file has no intervals of its own (``defaulted`` True),
     :func:`default_dt` with the absolute floor :data:`NOISE_FLOOR` for a table
@@ -253,6 +301,21 @@ def resolve_widths(ds: Dataset, dt: float | None, abs_width: float | None,
                 ds.meta[key] = (default_dt(ds.x, y, floor * top), None, floor)
         dt_default, absw, floor_rel = ds.meta[key]
         return dt_default, absw, floor_rel, True
+    if isinstance(abs_width, str):
+        if not is_auto_floor(abs_width):
+            raise InputError(f"abs_width must be a number >= 0 or {AUTO_FLOOR!r} (each "
+                             f"channel's noise level, from the data), got {abs_width!r}")
+        # the estimate, kept in the dataset's meta like the defaults (a KD-tree pass; the
+        # "default_widths" prefix makes a subset of the samples estimate it afresh)
+        key = f"default_widths:auto(dt={dt!r}, cosine={bool(cosine)}, clamp={clamp!r})"
+        if key not in ds.meta:
+            y = prepare_values(ds, cosine=cosine, clamp=clamp)
+            floors = noise_floors(ds.x, y)
+            # the narrowest channel's need: one that needs more is widened alone (fit_brdf)
+            d = dt if dt is not None else min(
+                default_dt(ds.x, y[:, j], floors[j]) for j in range(y.shape[1]))
+            ds.meta[key] = (d, floors)
+        dt, abs_width = ds.meta[key]
     return dt, abs_width, floor_rel, False
 
 
@@ -260,7 +323,7 @@ def brdf_segments(
     ds: Dataset,
     *,
     dt: float | None = None,
-    abs_width: float | None = None,
+    abs_width: AbsWidth = None,
     floor_rel: float | None = None,
     cosine: bool = False,
     clamp: float | None = None,
@@ -284,20 +347,26 @@ def brdf_segments(
     return Segments.from_widths(ds.x, y, dt=dt, abs_width=w, names=ds.output_names)
 
 
-def channel_floors(y: Array, abs_width: float | None, floor_rel: float | None) -> Array | None:
+def channel_floors(y: Array, abs_width: AbsWidth, floor_rel: float | None) -> Array | None:
     """Each channel's absolute floor: the larger of ``abs_width`` and ``floor_rel`` times
     the channel's largest |y| (None without either)."""
     if abs_width is None and floor_rel is None:
         return None
     w = np.zeros(y.shape[1])
-    if abs_width is not None:
-        w = np.maximum(w, check_width(abs_width, "abs_width"))
+    if isinstance(abs_width, (list, tuple, np.ndarray)):  # one per channel
+        per = np.asarray(abs_width, dtype=float)
+        if per.shape != w.shape or not np.all(np.isfinite(per) & (per >= 0)):
+            raise InputError(f"abs_width per channel must be {w.size} finite numbers >= 0, "
+                             f"got {list(np.ravel(per))}")
+        w = np.maximum(w, per)
+    elif abs_width is not None:
+        w = np.maximum(w, check_width(abs_width, "abs_width") or 0.0)
     if floor_rel is not None:
         w = np.maximum(w, floor_rel * np.abs(y).max(axis=0))
     return w
 
 
-def fit_brdf(ds: Dataset, *, dt: float | None = None, abs_width: float | None = None,
+def fit_brdf(ds: Dataset, *, dt: float | None = None, abs_width: AbsWidth = None,
              floor_rel: float | None = None, cosine: bool = False, clamp: float | None = None,
              positive_q: bool = False, consistent: bool | None = None,
              shared_denominator: bool = False,
@@ -320,6 +389,10 @@ def fit_brdf(ds: Dataset, *, dt: float | None = None, abs_width: float | None = 
 
     full = ds
     check_floor_rel(dt, abs_width, floor_rel)
+    # each channel's noise level from the data; a dt of ratfit's choice is then widened
+    # channel by channel where a channel has no candidate, as a default one is
+    noise = is_auto_floor(abs_width)
+    dt_chosen = noise and dt is None
     dt, abs_width, floor_rel, default_widths = resolve_widths(
         ds, dt, abs_width, floor_rel, cosine=cosine, clamp=clamp)
     dropped = constant_axes(ds.x) if ds.n_points > 1 else np.arange(0)
@@ -338,7 +411,8 @@ def fit_brdf(ds: Dataset, *, dt: float | None = None, abs_width: float | None = 
     if cosine and dropped.size:
         seg = Segments(ds.x, seg.lo, seg.hi, seg.y, seg.names)
     merged = 0
-    consistent = default_widths and is_table(ds) if consistent is None else consistent
+    if consistent is None:  # ratfit's floors are noise levels: reconcile repeated points
+        consistent = (default_widths and is_table(ds)) or noise
     if consistent:
         seg, merged = consistent_segments(seg)
     if fitter_params.get("polish_error", "auto") == "auto":
@@ -359,7 +433,7 @@ def fit_brdf(ds: Dataset, *, dt: float | None = None, abs_width: float | None = 
                             used_coords=used, **fitter_params)
     fitter.fit(seg)
     channel_dt = None
-    if (default_widths and dt is not None and seg.n_channels > 1
+    if ((default_widths or dt_chosen) and dt is not None and seg.n_channels > 1
             and fitter_params.get("max_total") is None and not shared_denominator):
         # not under a size bound of the caller's (as in fit_brdf_auto's widening)
         floors = channel_floors(seg.center, abs_width, floor_rel)
@@ -382,8 +456,13 @@ def fit_brdf(ds: Dataset, *, dt: float | None = None, abs_width: float | None = 
         "fold_phi_d": bool(ds.meta.get("fold_phi_d", False)),
         "param_out": ds.meta.get("param_out"),
         "channel_names": list(seg.names),
-        "segments": {"dt": dt, "abs_width": abs_width, "floor_rel": floor_rel,
+        "segments": {"dt": dt,
+                     "abs_width": (None if abs_width is None else
+                                   np.asarray(abs_width, dtype=float).tolist()),
+                     "floor_rel": floor_rel,
                      "default": default_widths, "merged": merged,
+                     # abs_width is each channel's noise level, estimated from the data
+                     "noise_estimated": noise,
                      # per channel where a channel alone was widened (None: all at dt)
                      "channel_dt": channel_dt},
         # a fit of a random subset is verified on that subset only
@@ -450,11 +529,12 @@ def _band(ds: Dataset, kw: dict[str, Any]) -> tuple[float, float]:
     return _band_of(dt, absw, floor_rel)
 
 
-def _band_of(dt: float | None, abs_width: float | None,
+def _band_of(dt: float | None, abs_width: AbsWidth,
              floor_rel: float | None) -> tuple[float, float]:
     """(dt, floor) of segments of these widths: the floor is the absolute width when
     there is one, else the fraction of the peak."""
-    return float(dt or 0.0), float(abs_width if abs_width is not None else floor_rel or 0.0)
+    floor = np.max(abs_width) if abs_width is not None else floor_rel or 0.0
+    return float(dt or 0.0), float(floor)
 
 
 def fit_brdf_auto(datasets: list[Dataset], **kw: Any):

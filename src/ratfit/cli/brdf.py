@@ -28,6 +28,21 @@ def brdf_group() -> None:
     """Measured BRDFs: MERL, ALTA, Cornell/pbrt, ASTM and EXR files."""
 
 
+class FloorType(click.ParamType):
+    """A number, or "auto": each channel's noise level estimated from the data."""
+
+    name = "FLOAT|auto"
+
+    def convert(self, value: Any, param: click.Parameter | None,
+                ctx: click.Context | None) -> float | str:
+        if isinstance(value, str) and value.strip().lower() == "auto":
+            return "auto"
+        try:
+            return float(value)
+        except (TypeError, ValueError):
+            self.fail(f"{value!r} is neither a number nor 'auto'", param, ctx)
+
+
 def _split_channels(values: tuple[str, ...]) -> list[str]:
     return [c.strip() for v in values for c in v.split(",") if c.strip()]
 
@@ -54,9 +69,14 @@ def _split_channels(values: tuple[str, ...]) -> list[str]:
                    "When nothing verifies and every split tested was infeasible, that "
                    "default is widened 1.5x (up to 0.9) until a try has a candidate "
                    "(not with --max-total).")
-@click.option("--abs-width", type=float,
+@click.option("--abs-width", type=FloorType(),
               help="Absolute half-width (floor: the noise level, in the data's units); "
-                   "with --dt each segment takes the larger.")
+                   "with --dt each segment takes the larger. 'auto': each channel's noise "
+                   "level estimated from the data (half the 90th percentile of the "
+                   "differences between samples within 1 % of each axis of each other, "
+                   "at least 1e-3), relative polish, nearby disjoint segments joined, and "
+                   "without --dt the narrowest channel's dt, widened channel by channel "
+                   "where a channel has no candidate.")
 @click.option("--floor-rel", type=float,
               help="Absolute half-width per channel as a fraction of the channel's maximum.")
 @click.option("--cosine", is_flag=True, help="Fit BRDF x cos(theta_l); evaluation undoes it.")
@@ -101,7 +121,8 @@ def _split_channels(values: tuple[str, ...]) -> list[str]:
                    "stored that way; the fit is not polished.")
 @click.option("--json", "as_json", is_flag=True, help="Print one JSON object on stdout.")
 def brdf_fit(input_path: Path, output: Path | None, fmt: str | None, param: str | None,
-             dt: float | None, abs_width: float | None, floor_rel: float | None, cosine: bool,
+             dt: float | None, abs_width: float | str | None, floor_rel: float | None,
+             cosine: bool,
              clamp: float | None, positive_q: bool, channels: tuple[str, ...], color: str,
              max_points: int | None, holdout: int | None, no_polish: bool,
              polish_error: str, as_json: bool, shared: bool = False,

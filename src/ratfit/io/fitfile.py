@@ -591,8 +591,16 @@ def _segments_spec(v: Any) -> bool:
     if not isinstance(v, dict):
         return False
     for key, val in v.items():
-        if key in ("dt", "abs_width", "floor_rel", "narrowed_floor_from"):
+        if key in ("dt", "floor_rel", "narrowed_floor_from"):
             if not (val is None or _number(val)):
+                return False
+        elif key == "abs_width":
+            # one floor, one per channel (estimated from the data), or the request's
+            # "auto" that asked for that estimate
+            if not (val is None or _number(val) or _list_of(_number)(val) or val == "auto"):
+                return False
+        elif key == "noise_estimated":
+            if not _is_bool(val):
                 return False
         elif key in ("explicit", "default"):
             if not _is_bool(val):

@@ -82,7 +82,7 @@ class BRDFFitRequest:
     format: str | None = None
     parametrization: str | None = None
     dt: float | None = None
-    abs_width: float | None = None
+    abs_width: float | str | None = None
     floor_rel: float | None = None
     cosine: bool = False
     clamp: float | None = None
@@ -110,7 +110,12 @@ class BRDFFitRequest:
             fix(self, "format", check_choice(str(self.format).lower(), "format", BRDF_FORMATS))
         if self.parametrization is not None:
             fix(self, "parametrization", get_parametrization(self.parametrization).name)
+        from ratfit.brdf.fitter import AUTO_FLOOR, is_auto_floor
+
         for key in ("dt", "abs_width", "floor_rel", "clamp"):
+            if key == "abs_width" and is_auto_floor(self.abs_width):
+                fix(self, key, AUTO_FLOOR)  # each channel's noise level, from the data
+                continue
             fix(self, key, check_nonnegative(getattr(self, key), key))
         from ratfit.brdf.fitter import check_floor_rel
 
@@ -240,6 +245,8 @@ class BRDFFitReport:
                        + "; narrower segments, then fewer coefficients win; --param fixes one)")
         if self.meta["segments"]["default"]:
             out.append(_widths_note(self.meta["segments"]))
+        elif self.meta["segments"].get("noise_estimated"):
+            out.append(_noise_note(self.meta["segments"], self.meta["channel_names"]))
         return out
 
     def hint(self) -> str | None:
@@ -363,6 +370,21 @@ def _candidate_note(c: dict[str, Any]) -> str:
         return (f"{c['parametrization']} at {c['dt']:.3g}: no candidate{up} "
                 "(every split infeasible)")
     return f"{c['parametrization']}: no verified fit{up}"
+
+
+def _noise_note(widths: dict[str, Any], names: list[str]) -> str:
+    """Segments at each channel's noise level estimated from the data (--abs-width auto)."""
+    from ratfit.brdf.fitter import NOISE_NEAR, NOISE_QUANTILE
+
+    dts = widths.get("channel_dt") or [widths["dt"]] * len(names)
+    per = "; ".join(f"{n} +- {d:.3g} y, floor {w:.3g}"
+                    for n, d, w in zip(names, dts, widths["abs_width"], strict=True))
+    return (f"segments: {per} (floor: each channel's noise level, half the "
+            f"{100 * NOISE_QUANTILE:g}th percentile of the differences between samples "
+            f"within {100 * NOISE_NEAR:g} % of each axis of each other; "
+            + ("a channel with no candidate was widened alone; " if widths.get("channel_dt")
+               else "") + f"{widths.get('merged') or 0} samples widened to a nearby "
+            "sample's segment they did not overlap)")
 
 
 def _widths_note(widths: dict[str, Any]) -> str:
