@@ -43,6 +43,12 @@ def _measured_twice(k: int = 24, seed: int = 3) -> tuple[np.ndarray, np.ndarray]
     return x, clean + noise
 
 
+def _write(path: Path, x: np.ndarray, y: np.ndarray) -> Path:
+    rows = "\n".join(" ".join(f"{v:.17g}" for v in (*xi, *yi)) for xi, yi in zip(x, y, strict=True))
+    path.write_text(f"#DIM 2 2\n#PARAM_IN {PARAM}\n#PARAM_OUT INV_STERADIAN\n{rows}\n")
+    return path
+
+
 def test_noise_floors_estimate_a_known_noise() -> None:
     rng = np.random.default_rng(1)
     x = rng.uniform(0.0, 1.0, (4000, 2))
@@ -76,10 +82,7 @@ def test_auto_floor_segments_use_the_estimate() -> None:
 @pytest.mark.slow
 def test_auto_floor_fit_widens_one_channel_and_records_the_floors(tmp_path: Path) -> None:
     x, y = _measured_twice()
-    rows = "\n".join(" ".join(f"{v:.17g}" for v in (*xi, *yi))
-                     for xi, yi in zip(x, y, strict=True))
-    data = tmp_path / "twice.dat"
-    data.write_text(f"#DIM 2 2\n#PARAM_IN {PARAM}\n#PARAM_OUT INV_STERADIAN\n{rows}\n")
+    data = _write(tmp_path / "twice.dat", x, y)
     out = tmp_path / "f.json"
     r = run_cli("brdf", "fit", data, "--abs-width", "auto", "-o", out, "--jobs", "1")
     assert r.exit_code == 0, r.output
@@ -131,3 +134,24 @@ def test_fit_brdf_records_per_channel_floors() -> None:
     half = np.maximum(0.05 * np.abs(y[:, 0]), floors[0])
     assert np.all(seg.lo[:, 0] <= y[:, 0] - half * (1 - 1e-12))
     assert np.all(seg.hi[:, 0] >= y[:, 0] + half * (1 - 1e-12))
+
+
+@pytest.mark.slow
+def test_auto_floor_starts_each_channel_at_its_own_need(tmp_path: Path) -> None:
+    """One point of y0 measured 1.0 and 1.3: y0 starts at the width that pair needs
+    over its floor (1.1 x (0.3 - 2 x 0.0048) / 2.3, rounded up: 0.14); y1 starts at 0.05
+    and is widened alone to 0.18."""
+    x, y = _measured_twice()
+    y[0, 0], y[len(y) // 2, 0] = 1.0, 1.3  # the same grid point, measured twice
+    floors = noise_floors(x, y)
+    assert np.isclose(floors[0], noise_floors(*_measured_twice())[0], rtol=0.05)
+    out = tmp_path / "f.json"
+    r = run_cli("brdf", "fit", _write(tmp_path / "d.dat", x, y), "--abs-width", "auto",
+                "-o", out, "--jobs", "1")
+    assert r.exit_code == 0, r.output
+    seg = json.loads(out.read_text())["brdf"]["segments"]
+    assert seg["channel_dt"] == [0.14, 0.18] and seg["dt"] == 0.05
+    v = load_brdf_fit(out).eval_coords(x)[:, 0]
+    # the two measurements' segments overlap, and the fit lies in both
+    for i in (0, len(y) // 2):
+        assert abs(v[i] - y[i, 0]) <= max(0.14 * y[i, 0], floors[0]) * (1 + 1e-9)
