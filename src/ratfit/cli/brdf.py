@@ -75,8 +75,8 @@ def _split_channels(values: tuple[str, ...]) -> list[str]:
                    "level estimated from the data (half the 90th percentile of the "
                    "differences between samples within 1 % of each axis of each other, "
                    "at least 1e-3), relative polish, nearby disjoint segments joined, and "
-                   "without --dt the narrowest channel's dt, widened channel by channel "
-                   "where a channel has no candidate.")
+                   "without --dt each channel at the width its own nearby samples need, "
+                   "widened alone while it has no candidate.")
 @click.option("--floor-rel", type=float,
               help="Absolute half-width per channel as a fraction of the channel's maximum.")
 @click.option("--cosine", is_flag=True, help="Fit BRDF x cos(theta_l); evaluation undoes it.")

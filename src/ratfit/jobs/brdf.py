@@ -379,12 +379,13 @@ def _noise_note(widths: dict[str, Any], names: list[str]) -> str:
     dts = widths.get("channel_dt") or [widths["dt"]] * len(names)
     per = "; ".join(f"{n} +- {d:.3g} y, floor {w:.3g}"
                     for n, d, w in zip(names, dts, widths["abs_width"], strict=True))
+    alone = ("each channel from the width its nearby samples need, widened alone while "
+             "it had no candidate; " if widths.get("channel_dt") else "")
     return (f"segments: {per} (floor: each channel's noise level, half the "
             f"{100 * NOISE_QUANTILE:g}th percentile of the differences between samples "
-            f"within {100 * NOISE_NEAR:g} % of each axis of each other; "
-            + ("a channel with no candidate was widened alone; " if widths.get("channel_dt")
-               else "") + f"{widths.get('merged') or 0} samples widened to a nearby "
-            "sample's segment they did not overlap)")
+            f"within {100 * NOISE_NEAR:g} % of each axis of each other; {alone}"
+            f"{widths.get('merged') or 0} samples widened to a nearby sample's segment "
+            "they did not overlap)")
 
 
 def _widths_note(widths: dict[str, Any]) -> str:
