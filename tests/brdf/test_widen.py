@@ -53,7 +53,7 @@ def test_no_candidate_at_the_default_widens_until_one_fits() -> None:
                                 (0.12, 0.08, True, False), (0.18, 0.12, False, True)]
     assert meta["segments"] == {"dt": 0.18, "abs_width": None, "floor_rel": 0.002,
                                 "default": True, "widened_from": [0.05, 0.08, 0.12],
-                                "merged": 0, "channel_dt": None}
+                                "merged": 0, "channel_dt": None, "noise_estimated": False}
     # every sample inside the kept segments, which are 0.18 wide
     np.testing.assert_allclose(seg.hi[:, 0], 1.18 * y)
     r = fitter.result_
