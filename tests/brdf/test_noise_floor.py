@@ -155,3 +155,17 @@ def test_auto_floor_starts_each_channel_at_its_own_need(tmp_path: Path) -> None:
     # the two measurements' segments overlap, and the fit lies in both
     for i in (0, len(y) // 2):
         assert abs(v[i] - y[i, 0]) <= max(0.14 * y[i, 0], floors[0]) * (1 + 1e-9)
+
+
+@pytest.mark.slow
+def test_auto_floor_widens_a_single_channel() -> None:
+    """One channel that alternates +-15 %: no candidate at 0.05, 0.08, 0.12; a constant
+    at 0.18, recorded as that channel's width."""
+    x, y = _measured_twice()
+    ds = Dataset(x, y[:, 1:], None, None, ("th", "td"), ("G",), {"param_in": PARAM})
+    fitter, seg, meta = fit_brdf(ds, abs_width="auto", jobs=1)
+    assert fitter.success_ and meta["segments"]["channel_dt"] == [0.18]
+    r = fitter.results_[0]
+    assert r.n + r.m == 2
+    v = r.rational(x)
+    assert np.all((v >= seg.lo[:, 0]) & (v <= seg.hi[:, 0]))

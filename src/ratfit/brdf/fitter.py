@@ -439,7 +439,8 @@ def fit_brdf(ds: Dataset, *, dt: float | None = None, abs_width: AbsWidth = None
                             used_coords=used, **fitter_params)
     fitter.fit(seg)
     channel_dt = starts if starts is not None and len(set(starts)) > 1 else None
-    if ((default_widths or dt_chosen) and dt is not None and seg.n_channels > 1
+    # (one channel at default widths is widened with its frame: fit_brdf_auto's _widen)
+    if (((default_widths and seg.n_channels > 1) or dt_chosen) and dt is not None
             and fitter_params.get("max_total") is None and not shared_denominator):
         # not under a size bound of the caller's (as in fit_brdf_auto's widening)
         floors = channel_floors(seg.center, abs_width, floor_rel)
