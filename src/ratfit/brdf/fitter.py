@@ -374,6 +374,9 @@ def fit_brdf(ds: Dataset, *, dt: float | None = None, abs_width: AbsWidth = None
              **fitter_params: Any):
     """Fit every channel of a BRDF dataset; returns (fitter, segments, brdf_meta).
 
+    ``abs_width="auto"``: each channel's floor is its noise level (:func:`noise_floors`),
+    the segments are made consistent, and without ``dt`` each channel starts at the width
+    its nearby samples need and is widened alone while it has no candidate.
     ``fitter_params`` go to :class:`ratfit.fitting.search.RationalFitter` (basis,
     index_set, max_total, n, m, jobs...). ``positive_q``: see
     :attr:`BRDFFitter.positive_q`. ``consistent``: samples within

@@ -55,7 +55,8 @@ class BRDFFitRequest:
         (ISOTROPIC_TV_TL_DPHI for Cartesian pairs), and for isotropic angles the
         half-vector frame first, keeping the better verified fit.
     dt, abs_width, floor_rel : float, optional
-        Segment widths (default: the file's intervals, else ratfit's defaults).
+        Segment widths (default: the file's intervals, else ratfit's defaults);
+        ``abs_width="auto"``: each channel's noise level, estimated from the data.
     cosine, clamp
         Fit BRDF x cos(theta_l); raise values below ``clamp`` to it.
     channels : tuple of str or int
