@@ -105,6 +105,15 @@ def test_auto_floor_fit_widens_one_channel_and_records_the_floors(tmp_path: Path
         # (consistent segments join the disjoint segments of a point measured twice)
         inside = np.abs(v[:, j] - y[:, j]) <= half * (1 + 1e-9)
         assert inside.mean() > 0.97, (j, inside.mean())
+    # the report draws each channel's segments at its own width
+    from ratfit.brdf.io import brdf_dataset
+    from ratfit.viz.report import LoadedFit, segments_of
+
+    drawn = segments_of(LoadedFit.load(str(out)), brdf_dataset(data, PARAM))
+    assert drawn is not None
+    for j, d in enumerate((0.05, 0.18)):
+        np.testing.assert_allclose(drawn.hi[:, j] - drawn.center[:, j],
+                                   np.maximum(d * np.abs(y[:, j]), floors[j]), rtol=1e-9)
 
 
 def test_auto_floor_refuses_other_words(tmp_path: Path) -> None:

@@ -111,9 +111,17 @@ def segments_of(fit: LoadedFit, ds: Dataset):
         try:
             from ratfit.brdf.fitter import brdf_segments
 
-            return brdf_segments(ds, dt=seg.get("dt"), abs_width=seg.get("abs_width"),
-                                 floor_rel=seg.get("floor_rel"),
-                                 cosine=bool(meta.get("cosine_weighted")), clamp=meta.get("clamp"))
+            kw = {"abs_width": seg.get("abs_width"), "floor_rel": seg.get("floor_rel"),
+                  "cosine": bool(meta.get("cosine_weighted")), "clamp": meta.get("clamp")}
+            out = brdf_segments(ds, dt=seg.get("dt"), **kw)
+            widths = seg.get("channel_dt")
+            if widths and len(widths) == out.n_channels:  # a channel at a width of its own
+                lo, hi = out.lo.copy(), out.hi.copy()
+                for j, d in enumerate(widths):
+                    one = brdf_segments(ds, dt=d, **kw)
+                    lo[:, j], hi[:, j] = one.lo[:, j], one.hi[:, j]
+                out = type(out)(out.x, lo, hi, out.y, out.names)
+            return out
         except InputError:
             return None
     seg = (fit.saved.provenance or {}).get("segments") or {}
