@@ -446,7 +446,6 @@ def fit_brdf(ds: Dataset, *, dt: float | None = None, abs_width: AbsWidth = None
     if (((default_widths and seg.n_channels > 1) or dt_chosen) and dt is not None
             and fitter_params.get("max_total") is None and not shared_denominator):
         # not under a size bound of the caller's (as in fit_brdf_auto's widening)
-        floors = channel_floors(seg.center, abs_width, floor_rel)
         seg, channel_dt = _widen_channels(fitter, seg, starts or dt, floors, consistent)
         fitter.segments_ = seg
     sub = ds.meta.get("subset")
@@ -682,16 +681,12 @@ def _widen_channels(fitter: BRDFFitter, seg: Segments, dt: float | Sequence[floa
     starts = [float(v) for v in np.broadcast_to(np.asarray(dt, dtype=float), seg.n_channels)]
     widths = list(starts)
     lo, hi = seg.lo.copy(), seg.hi.copy()
-    y = seg.center
     for j, res in enumerate(fitter.results_):
         d = widths[j]
         while (not res.success and res.status == 1 and not res.time_limited
                and d < MAX_DEFAULT_DT):
             d = widened_dt(d)
-            one = Segments.from_widths(seg.x, y[:, j:j + 1], dt=d,
-                                       abs_width=None if floors is None else floors[j:j + 1],
-                                       names=(seg.names[j],))
-            one = nonnegative_segments(one)
+            one = _one_channel(seg, j, d, floors)
             if consistent:
                 one, _ = consistent_segments(one)
             alone = type(fitter)(**fitter.get_params()).fit(one)
@@ -726,11 +721,16 @@ def _channel_widths(seg: Segments, floors: Array, quantile: float
               for j in range(seg.n_channels)]
     lo, hi = seg.lo.copy(), seg.hi.copy()
     for j, d in enumerate(widths):
-        one = nonnegative_segments(Segments.from_widths(
-            seg.x, seg.center[:, j:j + 1], dt=d, abs_width=floors[j:j + 1],
-            names=(seg.names[j],)))
+        one = _one_channel(seg, j, d, floors)
         lo[:, j], hi[:, j] = one.lo[:, 0], one.hi[:, 0]
     return Segments(seg.x, lo, hi, seg.y, seg.names), widths
+
+
+def _one_channel(seg: Segments, j: int, dt: float, floors: Array | None) -> Segments:
+    """Channel ``j``'s segments alone at width ``dt`` over its floor, lo raised to 0."""
+    return nonnegative_segments(Segments.from_widths(
+        seg.x, seg.center[:, j:j + 1], dt=dt,
+        abs_width=None if floors is None else floors[j:j + 1], names=(seg.names[j],)))
 
 
 def widened_dt(dt: float) -> float:

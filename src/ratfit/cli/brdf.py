@@ -35,8 +35,10 @@ class FloorType(click.ParamType):
 
     def convert(self, value: Any, param: click.Parameter | None,
                 ctx: click.Context | None) -> float | str:
-        if isinstance(value, str) and value.strip().lower() == "auto":
-            return "auto"
+        from ratfit.brdf.fitter import AUTO_FLOOR, is_auto_floor
+
+        if is_auto_floor(value):
+            return AUTO_FLOOR
         try:
             return float(value)
         except (TypeError, ValueError):
