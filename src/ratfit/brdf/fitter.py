@@ -65,6 +65,8 @@ __all__ = ["AUTO_FLOOR", "BRDF_SOLVER", "DEFAULT_DT", "DEFAULT_FLOOR_REL", "BRDF
            "subset_status", "valid_grid"]
 
 Array = NDArray[np.float64]
+# (i, j) index pairs of samples closer than a fraction of each axis (close_pairs)
+Pairs = tuple[NDArray[np.intp], NDArray[np.intp]]
 #: An absolute floor: one number, one per channel, or "auto" (:func:`noise_floors`).
 AbsWidth = float | str | Sequence[float] | Array | None
 # Segments when neither the command nor the file gives any: 5 % of each value, the
@@ -181,7 +183,8 @@ def prepare_values(ds: Dataset, *, cosine: bool = False, clamp: float | None = N
 
 
 def default_dt(x: ArrayLike, y: ArrayLike, floor: float | ArrayLike = NOISE_FLOOR,
-               near: float = 0.01, quantile: float = 1.0) -> float:
+               near: float = 0.01, quantile: float = 1.0,
+               pairs: Pairs | None = None) -> float:
     """The relative width the defaults use: :data:`DEFAULT_DT`, widened where the data
     itself needs more. Two samples closer than ``near`` (a fraction of each axis's
     span) are, for a smooth function, the same point measured twice: their segments
@@ -191,11 +194,12 @@ def default_dt(x: ArrayLike, y: ArrayLike, floor: float | ArrayLike = NOISE_FLOO
     nearest-neighbour jumps) get dt 0.22 this way; scattered goniometer data keeps 0.05.
     Below 1, the pairs beyond the quantile are
     :func:`~ratfit.brdf.consistency.consistent_segments`' to reconcile one by one.
+    ``pairs``: :func:`close_pairs` of ``x`` at ``near``, when the caller has them.
     """
     ya = np.abs(np.asarray(y, dtype=float))
     if ya.ndim == 1:
         ya = ya[:, None]
-    first, second = close_pairs(x, near)
+    first, second = close_pairs(x, near) if pairs is None else pairs
     if not first.size:
         return DEFAULT_DT
     a, b = ya[first], ya[second]
@@ -207,7 +211,7 @@ def default_dt(x: ArrayLike, y: ArrayLike, floor: float | ArrayLike = NOISE_FLOO
     return float(min(max(DEFAULT_DT, np.ceil(110.0 * typical) / 100.0), 0.9))
 
 
-def close_pairs(x: ArrayLike, near: float) -> tuple[NDArray[np.intp], NDArray[np.intp]]:
+def close_pairs(x: ArrayLike, near: float) -> Pairs:
     """(i, j): each sample i whose nearest other sample j lies closer than ``near``, a
     fraction of each axis's span (for a smooth function, one point measured twice)."""
     from scipy.spatial import cKDTree
@@ -226,7 +230,8 @@ def close_pairs(x: ArrayLike, near: float) -> tuple[NDArray[np.intp], NDArray[np
 
 
 def noise_floors(x: ArrayLike, y: ArrayLike, *, near: float = NOISE_NEAR,
-                 quantile: float = NOISE_QUANTILE, least: float = NOISE_FLOOR) -> Array:
+                 quantile: float = NOISE_QUANTILE, least: float = NOISE_FLOOR,
+                 pairs: Pairs | None = None) -> Array:
     """Each channel's absolute noise level (k,), estimated from the data.
 
     Two samples closer than ``near`` (a fraction of each axis's span) are one point
@@ -235,11 +240,12 @@ def noise_floors(x: ArrayLike, y: ArrayLike, *, near: float = NOISE_NEAR,
     stop counting), and ``least`` where no two samples are that close. Cornell's
     garnet_red gives R/G/B 2.3e-3/1.5e-3/2.0e-3 1/sr, the order of its diffuse G and B
     values (median 3e-3), which a fixed 1e-3 floor asked to follow within 10 %.
+    ``pairs``: :func:`close_pairs` of ``x`` at ``near``, when the caller has them.
     """
     ya = np.asarray(y, dtype=float)
     if ya.ndim == 1:
         ya = ya[:, None]
-    first, second = close_pairs(x, near)
+    first, second = close_pairs(x, near) if pairs is None else pairs
     if not first.size:
         return np.full(ya.shape[1], float(least))
     half = np.abs(ya[first] - ya[second]) / 2
@@ -305,19 +311,27 @@ def resolve_widths(ds: Dataset, dt: float | None, abs_width: AbsWidth,
         if not is_auto_floor(abs_width):
             raise InputError(f"abs_width must be a number >= 0 or {AUTO_FLOOR!r} (each "
                              f"channel's noise level, from the data), got {abs_width!r}")
-        # the estimate, kept in the dataset's meta like the defaults (a KD-tree pass; the
-        # "default_widths" prefix makes a subset of the samples estimate it afresh)
-        key = f"default_widths:auto(dt={dt!r}, cosine={bool(cosine)}, clamp={clamp!r})"
+        # the estimate, kept in the dataset's meta like the defaults
+        key = _auto_key(dt, cosine, clamp)
         if key not in ds.meta:
             y = prepare_values(ds, cosine=cosine, clamp=clamp)
-            floors = noise_floors(ds.x, y)
-            # the narrowest channel's need (fit_brdf starts each channel at its own)
-            d = dt if dt is not None else min(
-                default_dt(ds.x, y[:, j], floors[j], quantile=close_pair_quantile(ds))
-                for j in range(y.shape[1]))
-            ds.meta[key] = (d, floors)
-        dt, abs_width = ds.meta[key]
+            pairs = close_pairs(ds.x, NOISE_NEAR)  # one KD-tree pass for all of them
+            floors = noise_floors(ds.x, y, pairs=pairs)
+            # each channel's own need (fit_brdf starts each channel there); the
+            # narrowest is the fit's dt
+            starts = None if dt is not None else [
+                default_dt(ds.x, y[:, j], floors[j], near=NOISE_NEAR,
+                           quantile=close_pair_quantile(ds), pairs=pairs)
+                for j in range(y.shape[1])]
+            ds.meta[key] = (dt if starts is None else min(starts), floors, starts)
+        dt, abs_width, _ = ds.meta[key]
     return dt, abs_width, floor_rel, False
+
+
+def _auto_key(dt: float | None, cosine: bool, clamp: float | None) -> str:
+    """The dataset meta key of ``abs_width="auto"``'s estimate (the "default_widths"
+    prefix makes a subset of the samples estimate it afresh)."""
+    return f"default_widths:auto(dt={dt!r}, cosine={bool(cosine)}, clamp={clamp!r})"
 
 
 def brdf_segments(
@@ -399,6 +413,8 @@ def fit_brdf(ds: Dataset, *, dt: float | None = None, abs_width: AbsWidth = None
     dt_chosen = noise and dt is None
     dt, abs_width, floor_rel, default_widths = resolve_widths(
         ds, dt, abs_width, floor_rel, cosine=cosine, clamp=clamp)
+    # each channel's own start (abs_width="auto" without a dt)
+    own_starts = ds.meta[_auto_key(None, cosine, clamp)][2] if dt_chosen else None
     dropped = constant_axes(ds.x) if ds.n_points > 1 else np.arange(0)
     keep = np.setdiff1d(np.arange(ds.x.shape[1]), dropped)
     if dropped.size:
@@ -416,9 +432,9 @@ def fit_brdf(ds: Dataset, *, dt: float | None = None, abs_width: AbsWidth = None
         seg = Segments(ds.x, seg.lo, seg.hi, seg.y, seg.names)
     starts: list[float] | None = None
     floors = channel_floors(seg.center, abs_width, floor_rel)
-    if dt_chosen and floors is not None and seg.n_channels > 1:
+    if own_starts is not None and floors is not None and seg.n_channels > 1:
         # each channel from what its own noise needs
-        seg, starts = _channel_widths(seg, floors, close_pair_quantile(ds))
+        seg, starts = _channel_widths(seg, floors, own_starts)
     merged = 0
     if consistent is None:  # ratfit's floors are noise levels: reconcile repeated points
         consistent = (default_widths and is_table(ds)) or noise
@@ -711,14 +727,13 @@ def close_pair_quantile(ds: Dataset) -> float:
     return CLOSE_PAIR_QUANTILE if is_table(ds) else 1.0
 
 
-def _channel_widths(seg: Segments, floors: Array, quantile: float
+def _channel_widths(seg: Segments, floors: Array, widths: Sequence[float]
                     ) -> tuple[Segments, list[float]]:
     """Each channel at the width its own repeated points need over its noise ``floors``
-    (:func:`default_dt` at ``quantile``); returns the segments and the widths.
-    garnet_red's G needs 0.19 and B 0.57 over its noise where R needs 0.05: started at
-    0.05, its search ran 40 min without a verified fit."""
-    widths = [default_dt(seg.x, seg.center[:, j], floors[j], quantile=quantile)
-              for j in range(seg.n_channels)]
+    (``widths``: :func:`default_dt` per channel, from :func:`resolve_widths`); returns
+    the segments and the widths. garnet_red's G needs 0.19 and B 0.57 over its noise
+    where R needs 0.05: started at 0.05, its search ran 40 min without a verified fit."""
+    widths = [float(d) for d in widths]
     lo, hi = seg.lo.copy(), seg.hi.copy()
     for j, d in enumerate(widths):
         one = _one_channel(seg, j, d, floors)
