@@ -71,6 +71,27 @@ def test_negative_between_samples_is_rejected() -> None:
     assert np.all(np.abs(chk.bad_points[:, 0] - b) < 5 * DEG)
 
 
+def test_validity_points_stay_with_their_channel() -> None:
+    """Where one channel's candidate had a pole, that channel's later splits get q > 0
+    rows; another channel's do not: its answer must not depend on which channels were
+    fitted with it (garnet_red's G carried R's points: 10 000+ row systems, and 69
+    coefficients where G alone has 68)."""
+    a = 75 * DEG
+    rf, seg = _candidate(lambda X: np.ones(len(X)),
+                         lambda X: (X[:, 0] - a) ** 2 + (X[:, 1] - a) ** 2 - 0.01)
+    two = Segments(seg.x, np.hstack([seg.lo, seg.lo]), np.hstack([seg.hi, seg.hi]),
+                   np.hstack([seg.y, seg.y]), ("R", "G"))
+    fitter, fresh = _fitter(), _fitter()
+    space = fitter.prepare(two)
+    fresh.prepare(two)
+    assert not fitter._verify(rf, two, 0).verified
+    added = sum(len(e) for e in fitter._points_of(0))
+    assert added > 0 and fitter._points_of(1) == []
+    rows = [fitter._split_system(space, two, j, 5, 5).n_rows for j in (0, 1)]
+    alone = fresh._split_system(space, two, 1, 5, 5).n_rows
+    assert rows[1] == alone and rows[0] == alone + 2 * added  # q > 0 and p >= 0 rows
+
+
 def test_a_positive_pole_free_candidate_passes() -> None:
     rf, seg = _candidate(lambda X: 1.0 + X[:, 0] ** 2, lambda X: 2.0 + X[:, 1])
     ver = _fitter()._verify(rf, seg, 0)
@@ -168,7 +189,7 @@ def test_repair_adds_spread_bad_points_round_after_round(monkeypatch) -> None:
 
     rf, seg = _candidate(lambda X: 1.0 + X[:, 0] ** 2, lambda X: 2.0 + X[:, 1])
     fitter = _fitter()
-    fitter._checks, fitter._shared_extra = {}, []
+    fitter._checks, fitter._points = {}, {}
     sizes: list[int] = []
     added: list[np.ndarray] = []
     bad = np.stack([np.linspace(0.1, 1.2, 4000), np.full(4000, 0.5), np.zeros(4000)], 1)

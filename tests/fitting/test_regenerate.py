@@ -34,7 +34,7 @@ class _FirstCandidateRejected(RationalFitter):
             return ver
 
         return dataclasses.replace(parts, verifier=verifier,
-                                   constraint_points=lambda: self.points,
+                                   constraint_points=lambda j: self.points,
                                    regenerate=self.regenerate)
 
 

@@ -927,6 +927,8 @@ class BRDFFitter(RationalFitter):
     _final_proof: bool = False
     # a channel searched again with the full proof on every candidate
     _full_search: bool = False
+    # every channel's validity points in one list (a shared denominator's helper: one q)
+    _pooled_points: bool = False
 
     def __init__(self, *, parametrization: str = UNKNOWN_PARAMETRIZATION,
                  positive_q: bool = False, physical: bool = True, polish: bool = True,
@@ -945,7 +947,7 @@ class BRDFFitter(RationalFitter):
     def _fit_segments(self, segments: Segments) -> Self:
         """Search every channel, then polish and prove (``fit`` ends here)."""
         if not self._full_search:
-            self._shared_extra: list[Array] = []
+            self._points: dict[int, list[Array]] = {}
         self._checks: dict[int, Any] = {}
         self._polish_budgets: dict[int, WorkBudget] = {}
         super()._fit_segments(segments)
@@ -1003,7 +1005,7 @@ class BRDFFitter(RationalFitter):
         again = type(self)(**params)
         again._full_search = True
         again._final_proof = True
-        again._shared_extra = list(self._extra)
+        again._points = {0: list(self._points_of(j))}
         again._fit_segments(seg.channel(j))
         out = again.results_[0]
         if not out.success:
@@ -1052,7 +1054,7 @@ class BRDFFitter(RationalFitter):
                 if attempt or not len(proof.bad_points):
                     break
                 # the repair of the search, now with the full proof as the check
-                self._extra.append(_spread(proof.bad_points, SEARCH_POINTS))
+                self._points_of(j).append(_spread(proof.bad_points, SEARCH_POINTS))
                 out = self._polish_rounds(rf, seg, j, None, rounds=REPAIR_ROUNDS,
                                           method="qp", repair=True,
                                           work=self._polish_work(j))
@@ -1067,24 +1069,15 @@ class BRDFFitter(RationalFitter):
                        verification=replace(ver, verified=False),
                        message=f"{res.message}; rejected: {why}")
 
-    @property
-    def _extra(self) -> list[Array]:
-        """Validity points the verifier found, which later splits (and channels) keep
-        q > 0, p >= 0 at; a channel searched beside others keeps its own while it
-        runs (its answer must not depend on the other threads' timing)."""
-        local = getattr(self, "_local", None)
-        if local is not None and hasattr(local, "channel"):
-            if not hasattr(local, "extra"):
-                local.extra = []
-            return local.extra
-        return self.__dict__.setdefault("_shared_extra", [])
-
-    def _channel_state(self) -> list[Array]:
-        return self._extra
-
-    def _merge_channel_states(self, states: list[Any]) -> None:
-        for points in states:
-            self._extra.extend(points)
+    def _points_of(self, j: int) -> list[Array]:
+        """Validity points where channel ``j``'s candidates had q <= 0 or r < 0: its later
+        splits, its polish and its final repair keep q > 0, p >= 0 there. Each channel
+        keeps its own, whether the channels run in turn or side by side, so a channel's
+        answer does not depend on which channels were fitted with it. Carried from
+        channel to channel (in turn), garnet_red's R points had made its G splits
+        systems of 10 000+ rows whose LP checks took seconds each."""
+        key = 0 if self._pooled_points else j
+        return self.__dict__.setdefault("_points", {}).setdefault(key, [])
 
     def _configurations(self, domain: Array) -> Array | None:
         """The physical-validity grid of direction pairs in ``domain`` (cached)."""
@@ -1114,8 +1107,8 @@ class BRDFFitter(RationalFitter):
         from ratfit.core.polish import polish_fit
 
         pts = self._configurations(rf.space.domain) if self.physical else None
-        if pts is not None and self._extra:
-            pts = np.concatenate([pts, *self._extra])
+        if pts is not None and self._points_of(j):
+            pts = np.concatenate([pts, *self._points_of(j)])
         for _ in range(rounds):
             if _past(deadline) or (work is not None and work.exhausted):
                 return None
@@ -1223,9 +1216,9 @@ class BRDFFitter(RationalFitter):
                            constraint_points=self._constraint_points if self.physical
                            else None)
 
-    def _constraint_points(self) -> int:
-        """How many validity points the verifier has added to the split systems."""
-        return sum(len(e) for e in self._extra)
+    def _constraint_points(self, j: int) -> int:
+        """How many validity points the verifier has added to channel ``j``'s splits."""
+        return sum(len(e) for e in self._points_of(j))
 
     def _split_system(self, space: PolynomialSpace, seg: Segments, j: int, n: int, m: int,
                       like: RowSystem | None = None) -> RowSystem | None:
@@ -1238,7 +1231,7 @@ class BRDFFitter(RationalFitter):
             grid = self._valid_grid_for(space.domain) if space.dim > 1 else None
         if grid is None:
             return system
-        extra = self._extra
+        extra = self._points_of(j)
         if extra:
             grid = np.concatenate([grid, *extra])
         if grid.size == 0:
@@ -1292,7 +1285,7 @@ class BRDFFitter(RationalFitter):
         self._checks[id(rf)] = chk
         if len(chk.bad_points):
             # constraint generation: later splits keep q > 0, p >= 0 there too
-            self._extra.append(_spread(chk.bad_points, SEARCH_POINTS))
+            self._points_of(j).append(_spread(chk.bad_points, SEARCH_POINTS))
         if np.all(seg.lo[:, j] >= 0):
             # every (finite) value is inside its segment here (checked above): r >= lo >= 0
             at_samples = True

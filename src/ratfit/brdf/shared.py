@@ -200,13 +200,13 @@ class _BRDFSharedSearch(_SharedSearch):
         return trial
 
     def _points(self) -> int:
-        return sum(len(e) for e in self.helper._extra)
+        return sum(len(e) for e in self.helper._points_of(0))
 
     def system(self, n: tuple[int, ...], m: int, q0: Array | None) -> Any:
         base = super().system(n, m, q0)
         if self.grid is None:
             return base
-        extra = self.helper._extra
+        extra = self.helper._points_of(0)
         grid = np.concatenate([self.grid, *extra]) if extra else self.grid
         if grid.size == 0:
             return base
@@ -275,6 +275,7 @@ class SharedBRDFFitter:
         self.helper = BRDFFitter(parametrization=parametrization, used_coords=used_coords,
                                  solver=self.params["solver"])
         self.helper._checks = {}
+        self.helper._pooled_points = True  # one q: every channel's points constrain it
 
     def options(self, k: int) -> SharedOptions:
         """The shared search's options for ``k`` channels (refusals as InputError)."""
@@ -378,7 +379,7 @@ class SharedBRDFFitter:
 
                 # the same sizes again, with rows at those points (the next round
                 # checks the segments and proves each channel of the new solution)
-                helper._extra.append(_spread(bad, ROUND_POINTS))
+                helper._points_of(0).append(_spread(bad, ROUND_POINTS))
                 try:
                     _att, new = search.solve_system(fit.n, fit.m)
                 except InputError:

@@ -634,7 +634,7 @@ class SearchParts:
     QP solves count against the :class:`~ratfit.core.work.WorkBudget` it is given
     (what is left of the search's ``work_limit``).
     ``constraint_points``, when given, counts the points the verifier has added
-    to the split systems' constraints (constraint generation); a split whose
+    to a channel's split systems' constraints (constraint generation); a split whose
     candidate was rejected while that count grew is solved again with them, up
     to ``regenerate`` times. ``active_set``, when not None, is the active-set
     mode the systems need in place of the options' (the monotone "max" form
@@ -647,7 +647,7 @@ class SearchParts:
     pole_grid: Array | None = None
     repair: Callable[[RationalFunction, Segments, int, WorkBudget],
                      tuple[RationalFunction, Verification] | None] | None = None
-    constraint_points: Callable[[], int] | None = None
+    constraint_points: Callable[[int], int] | None = None
     regenerate: int = 2
     active_set: bool | None = None
 
@@ -832,7 +832,7 @@ class SearchEngine:
         infeasible, which rules out every smaller split (a rejected candidate rules
         out nothing and makes the walk go on below its total)."""
         count = self.parts.constraint_points
-        before = count() if count is not None else 0
+        before = count(self.channel) if count is not None else 0
         out = self._run_once(n, m)
         # large data: a second solve is a second pass over every sample (the walk's
         # cost there is in the solves, not in the verifier)
@@ -844,7 +844,7 @@ class SearchEngine:
                     or ver.n_violations or not np.isfinite(ver.linf)):
                 break
             assert count is not None  # again_at_most is 0 without it
-            now = count()
+            now = count(self.channel)
             if now <= before or (self.deadline is not None
                                  and time.perf_counter() > self.deadline):
                 break
