@@ -30,6 +30,21 @@ def test_disjoint_neighbours_get_their_hull_and_nothing_else_moves() -> None:
     assert n_far == 0 and np.array_equal(same.lo, Segments.from_widths(far, y, dt=0.1).lo)
 
 
+def test_each_channel_is_made_consistent_on_its_own() -> None:
+    """A pair disjoint in channel a only: a takes the hull, b keeps its segments (a
+    channel's segments, hence its fit, do not depend on which channels come with it)."""
+    x = np.array([[0.0, 0.0], [0.005, 0.0], [1.0, 1.0]])
+    y = np.array([[1.0, 1.0], [2.0, 1.05], [1.0, 1.0]])
+    seg = Segments.from_widths(x, y, dt=0.1)
+    out, n = consistent_segments(seg)
+    assert n == 2
+    assert out.lo[0, 0] == out.lo[1, 0] == 0.9 and out.hi[0, 0] == out.hi[1, 0] == 2.2
+    assert np.array_equal(out.lo[:, 1], seg.lo[:, 1]) and np.array_equal(out.hi[:, 1],
+                                                                          seg.hi[:, 1])
+    alone, _ = consistent_segments(Segments.from_widths(x, y[:, 1:], dt=0.1))
+    assert np.array_equal(alone.lo[:, 0], out.lo[:, 1])
+
+
 def test_a_chain_of_disjoint_neighbours_ends_consistent_in_one_pass() -> None:
     x = np.array([[0.0], [0.01], [0.025], [1.0]])
     y = np.array([[1.0], [3.0], [9.0], [1.0]])
