@@ -388,20 +388,13 @@ class RationalFitter(Regressor):
                           seg: Segments, threads: int) -> list[FitResult]:
         """Every channel's fit, ``threads`` channels at a time. Each channel starts
         its search at ``min_total`` (no hint from another channel) and keeps what it
-        learns to itself while it runs (:meth:`_channel_state`, merged in channel
-        order afterwards): its answer does not depend on timing. Ctrl-C stops every
-        channel at its next split."""
-        self._local = threading.local()
+        learns to itself (a BRDF fit's validity points are kept per channel): its
+        answer does not depend on timing. Ctrl-C stops every channel at its next
+        split."""
         self._cancel = threading.Event()
-        states: dict[int, object] = {}
 
         def one(j: int) -> FitResult:
-            vars(self._local).clear()  # a pool thread may have run another channel
-            self._local.channel = j
-            try:
-                return self._fit_either(space, log_space, seg, j, alone=threads > 1)
-            finally:
-                states[j] = self._channel_state()
+            return self._fit_either(space, log_space, seg, j, alone=threads > 1)
 
         ex = ThreadPoolExecutor(threads)
         try:
@@ -413,16 +406,8 @@ class RationalFitter(Regressor):
             raise
         finally:
             ex.shutdown(wait=False, cancel_futures=True)
-        del self._local, self._cancel  # not picklable; a later fit starts afresh
-        self._merge_channel_states([states[j] for j in sorted(states)])
+        del self._cancel  # not picklable; a later fit starts afresh
         return results
-
-    def _channel_state(self) -> object:
-        """What this thread's channel learned that later steps need (subclasses)."""
-        return None
-
-    def _merge_channel_states(self, states: list[object]) -> None:
-        """Take in :meth:`_channel_state` of every channel, in channel order."""
 
     # -- collaborators of the search engine (subclasses: monotone CDFs, BRDFs) ---------
     def search_parts(self, space: PolynomialSpace, seg: Segments) -> SearchParts:
@@ -461,8 +446,7 @@ class RationalFitter(Regressor):
         factors = value_scales(segments)
         work = scale_segments(segments, factors)
         log_space = self._log_space(space, segments)
-        for stale in ("_local", "_cancel"):  # left by an interrupted side-by-side fit
-            self.__dict__.pop(stale, None)
+        self.__dict__.pop("_cancel", None)  # left by an interrupted side-by-side fit
         threads = self._channel_threads(work)
         with one_blas_thread():  # the search's own threads; BLAS pools only spin
             if segments.n_channels > 1:
