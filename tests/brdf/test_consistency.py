@@ -7,10 +7,11 @@ from pathlib import Path
 
 import numpy as np
 
-from ratfit.brdf.consistency import CONSISTENT_NEAR, consistent_segments
+from ratfit.brdf.consistency import CONSISTENT_NEAR, SAME_POINT, consistent_segments
 from ratfit.brdf.fitter import HALF_VECTOR, brdf_segments, fit_brdf, nonnegative_segments
 from ratfit.brdf.io import brdf_dataset
 from ratfit.core.segments import Segments
+from ratfit.fitting.search import disjoint_repeats
 
 
 def test_disjoint_neighbours_get_their_hull_and_nothing_else_moves() -> None:
@@ -57,6 +58,37 @@ def test_a_chain_of_disjoint_neighbours_ends_consistent_in_one_pass() -> None:
     assert np.allclose([out.lo[2, 0], out.hi[2, 0]], [2.85, 9.45], rtol=1e-15)
     again, n_again = consistent_segments(out)
     assert n_again == 0 and np.array_equal(again.lo, out.lo)
+
+
+def test_samples_at_one_point_share_a_value() -> None:
+    """Six samples at one point (a MERL table's phi_d cells at theta_h = 0), two of
+    them 1e-16 apart (phi_d and pi - phi_d), with values 1..32: nearest-neighbour hulls
+    alone chain them pairwise and leave no common value; the group gets its hull. A
+    point nearby but not the same keeps its own pairwise treatment."""
+    x = np.zeros((8, 3))
+    x[:, 1] = 0.5
+    x[1, 2] = 1e-16
+    x[6] = [0.3, 0.5, 0.0]  # elsewhere: untouched
+    x[7] = [1.0, 1.0, 1.0]
+    y = np.array([[1.0], [2.0], [4.0], [8.0], [16.0], [32.0], [5.0], [5.0]])
+    seg = Segments.from_widths(x, y, dt=0.1)
+    out, n = consistent_segments(seg)
+    assert n == 6
+    assert np.all(out.lo[:6, 0] == 0.9) and np.all(out.hi[:6, 0] == 35.2)
+    assert np.array_equal(out.lo[6:], seg.lo[6:]) and np.array_equal(out.hi[6:], seg.hi[6:])
+    assert disjoint_repeats(out, 0) is None
+    # groups whose segments already share a value are left as they are
+    close = Segments.from_widths(x, np.array([[1.0], [1.1], [1.05], [1.0], [1.1], [1.0],
+                                              [5.0], [5.0]]), dt=0.1)
+    same, n_same = consistent_segments(close)
+    assert n_same == 0 and np.array_equal(same.lo, close.lo)
+    # farther apart than SAME_POINT: a pair for the nearest-neighbour pass, not a group
+    apart = x.copy()
+    apart[1, 2] = 10 * SAME_POINT
+    again, _ = consistent_segments(Segments.from_widths(apart, y, dt=0.1))
+    assert disjoint_repeats(again, 0) is None
+    again2, n2 = consistent_segments(again)
+    assert n2 == 0
 
 
 def test_garnet_red_noise_level_segments_are_made_consistent(shared_data: Path) -> None:

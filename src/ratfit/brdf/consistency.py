@@ -7,19 +7,24 @@ values), and a network-encoded material varies with phi_d at theta_h = 0, where 
 isotropic BRDF cannot. Segments that ratfit builds itself must describe what was
 measured there: a value somewhere between the two. So where two samples lie within
 ``near`` of each other in the fit's coordinates (each axis scaled to [0, 1]) and
-their segments are disjoint, both get the hull of the two. Segments a user gave are
-never changed (disjoint segments at one point then mean that no function fits).
+their segments are disjoint, both get the hull of the two. Samples at one point of the
+fit's coordinates (a MERL table's 180 phi_d cells at theta_h = 0, or phi_d and pi - phi_d
+in a mirror-symmetric frame) whose segments share no value all get the hull of the
+group. Segments a user gave are never changed (disjoint segments at one point then mean
+that no function fits).
 """
 
 from __future__ import annotations
 
 import numpy as np
 from numpy.typing import NDArray
+from scipy.sparse import coo_array
+from scipy.sparse.csgraph import connected_components
 from scipy.spatial import cKDTree
 
 from ratfit.core.segments import Segments
 
-__all__ = ["CONSISTENT_NEAR", "consistent_segments"]
+__all__ = ["CONSISTENT_NEAR", "SAME_POINT", "consistent_segments"]
 
 Array = NDArray[np.float64]
 
@@ -28,12 +33,17 @@ Array = NDArray[np.float64]
 #: the half-vector frame: 38 of 1439 samples, nearest-neighbour distances have a
 #: median of 0.021 there).
 CONSISTENT_NEAR = 0.02
+#: Samples closer than this (axes scaled to [0, 1]) are one point: rounding apart
+#: (phi_d and pi - phi_d give sin^2(theta_h) cos(2 phi_d) 1e-16 apart), nothing more.
+SAME_POINT = 1e-9
 
 
 def consistent_segments(seg: Segments, near: float = CONSISTENT_NEAR) -> tuple[Segments, int]:
     """``seg`` with each sample whose nearest neighbour lies closer than ``near`` and
     has a disjoint segment widened, with that neighbour, to the hull of the two, channel
     by channel; returns the segments and how many samples were widened (in any channel).
+    Samples at one point (:data:`SAME_POINT`) whose segments share no value first get
+    the hull of their whole group.
 
     A channel's segments do not depend on the other channels': a pair disjoint in R
     but not in G leaves G as it was (widened in every channel, garnet_red's G fitted
@@ -49,19 +59,53 @@ def consistent_segments(seg: Segments, near: float = CONSISTENT_NEAR) -> tuple[S
         return seg, 0
     span = np.ptp(x, axis=0)
     t = (x - x.min(axis=0)) / np.where(span > 0, span, 1.0)
-    d, nn = cKDTree(t).query(t, k=2)
+    tree = cKDTree(t)
+    lo, hi = seg.lo.copy(), seg.hi.copy()
+    _join_same_points(tree, lo, hi)
+    d, nn = tree.query(t, k=2)
     a = np.flatnonzero(d[:, 1] < near)
     b = nn[a, 1]
-    lo, hi = seg.lo.copy(), seg.hi.copy()
     disjoint = (lo[a] > hi[b]) | (lo[b] > hi[a])  # (pairs, channels)
-    if not disjoint.any():
-        return seg, 0
     for c in range(lo.shape[1]):
         i, j = a[disjoint[:, c]], b[disjoint[:, c]]
-        hull_lo = np.minimum(seg.lo[i, c], seg.lo[j, c])
-        hull_hi = np.maximum(seg.hi[i, c], seg.hi[j, c])
+        hull_lo = np.minimum(lo[i, c], lo[j, c])
+        hull_hi = np.maximum(hi[i, c], hi[j, c])
         for k in (i, j):  # a sample in several pairs takes the union of their hulls
             np.minimum.at(lo[:, c], k, hull_lo)
             np.maximum.at(hi[:, c], k, hull_hi)
     widened = np.any((lo < seg.lo) | (hi > seg.hi), axis=1)
+    if not widened.any():
+        return seg, 0
     return Segments(seg.x, lo, hi, seg.y, seg.names), int(widened.sum())
+
+
+def _join_same_points(tree: cKDTree, lo: Array, hi: Array) -> None:
+    """Give every sample of a group at one point (:data:`SAME_POINT`) the group's hull,
+    in each channel where the group's segments share no value (in place). Nearest
+    neighbours alone chain such a group pairwise: a MERL table's theta_h = 0 cells at
+    theta_d = 89 degrees span 1.8-58 1/sr over phi_d in a network-encoded felt, and
+    after the pairwise pass their segments still had no common value at +-50 %."""
+    pairs = tree.query_pairs(SAME_POINT, output_type="ndarray")
+    if pairs.size == 0:
+        return
+    n = lo.shape[0]
+    graph = coo_array((np.ones(len(pairs), dtype=np.int8), (pairs[:, 0], pairs[:, 1])),
+                      shape=(n, n))
+    _, label = connected_components(graph, directed=False)
+    members = np.unique(pairs.ravel())
+    group = label[members]
+    order = np.argsort(group, kind="stable")
+    members, group = members[order], group[order]
+    starts = np.flatnonzero(np.r_[True, group[1:] != group[:-1]])
+    size = np.diff(np.r_[starts, members.size])
+    for c in range(lo.shape[1]):
+        top_lo = np.maximum.reduceat(lo[members, c], starts)
+        low_hi = np.minimum.reduceat(hi[members, c], starts)
+        clash = np.repeat(top_lo > low_hi, size)
+        if not clash.any():
+            continue
+        hull_lo = np.repeat(np.minimum.reduceat(lo[members, c], starts), size)
+        hull_hi = np.repeat(np.maximum.reduceat(hi[members, c], starts), size)
+        k = members[clash]
+        lo[k, c] = hull_lo[clash]
+        hi[k, c] = hull_hi[clash]
