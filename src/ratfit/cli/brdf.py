@@ -58,16 +58,20 @@ def _split_channels(values: tuple[str, ...]) -> list[str]:
 @click.option("--param", "param", default=None,
               help="Parametrization to fit in (ALTA names, e.g. RUSIN_TH_TD_PD, COS_TH_TD_PD, "
                    "STARK_2D); default: the file's own (ISOTROPIC_TV_TL_DPHI for Cartesian "
-                   "pairs), and for isotropic angles RUSIN_TH_TD_PD first, keeping the "
+                   "pairs), and for isotropic light and view angles the half-vector frame "
+                   "RUSIN_TH_TD_SYM first (RUSIN_TH_TD_PD with --cosine), keeping the "
                    "better verified fit (narrower segments, then fewer coefficients).")
 @click.option("--dt", type=float,
               help="Relative segment width: [(1-dt) y, (1+dt) y]. Without --dt, --abs-width "
                    "and --floor-rel: the file's own intervals, else 0.05 (widened where "
-                   "nearby samples need it) with an absolute floor of 1e-3 1/sr, the "
-                   "noise level (halved up to twice while the fit stays at most 12 "
-                   "coefficients per channel and most samples lie under the floor); "
-                   "samples within 2 % of each axis of each other whose segments are "
-                   "disjoint get the hull of the two. "
+                   "nearby samples need it) with a floor: for a table of every cell "
+                   "(MERL) 1e-3 1/sr, the noise level, samples within 2 % of each axis "
+                   "of each other whose segments are disjoint getting the hull of the "
+                   "two (samples at one point: of the group); for scattered "
+                   "measurements 0.1 % of each channel's peak in the half-vector "
+                   "frame, 0.2 % in others. The floor is halved up to twice while the "
+                   "fit stays at most 12 coefficients per channel and most samples lie "
+                   "under it. "
                    "When nothing verifies and every split tested was infeasible, that "
                    "default is widened 1.5x (up to 0.9) until a try has a candidate "
                    "(not with --max-total).")
