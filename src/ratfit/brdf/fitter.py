@@ -21,7 +21,7 @@ import os
 import time
 from collections.abc import Sequence
 from dataclasses import dataclass, replace
-from typing import Any, Self
+from typing import TYPE_CHECKING, Any, Self
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -52,6 +52,9 @@ from ratfit.errors import FileFormatError, InputError
 from ratfit.fitting.search import RationalFitter, SearchParts, SystemFactory
 from ratfit.io.data import Dataset
 from ratfit.io.fitfile import SavedFit, fit_document, load_fit, save_fit
+
+if TYPE_CHECKING:  # scipy.spatial and scipy.sparse load when segments are reconciled
+    from ratfit.brdf.consistency import Neighbours
 
 __all__ = ["AUTO_FLOOR", "BRDF_SOLVER", "DEFAULT_DT", "DEFAULT_FLOOR_REL", "BRDFFit",
            "BRDFFitter", "NOISE_NEAR", "NOISE_QUANTILE", "close_pairs", "is_auto_floor",
@@ -402,7 +405,7 @@ def fit_brdf(ds: Dataset, *, dt: float | None = None, abs_width: AbsWidth = None
     numerator; no channel is widened alone). ``brdf_meta`` is the ``"brdf"`` block of
     the fit file.
     """
-    from ratfit.brdf.consistency import consistent_segments
+    from ratfit.brdf.consistency import consistent_segments, sample_neighbours
     from ratfit.core.columns import constant_axes
 
     full = ds
@@ -438,8 +441,10 @@ def fit_brdf(ds: Dataset, *, dt: float | None = None, abs_width: AbsWidth = None
     merged = 0
     if consistent is None:  # ratfit's floors are noise levels: reconcile repeated points
         consistent = (default_widths and is_table(ds)) or noise
-    if consistent:
-        seg, merged = consistent_segments(seg)
+    # the samples consistent_segments reconciles: the same at every width tried below
+    around = sample_neighbours(seg.x) if consistent else None
+    if around is not None:
+        seg, merged = consistent_segments(seg, neighbours=around)
     if fitter_params.get("polish_error", "auto") == "auto":
         # relative errors mean something where small values have a noise-level floor
         fitter_params = {**fitter_params,
@@ -462,7 +467,7 @@ def fit_brdf(ds: Dataset, *, dt: float | None = None, abs_width: AbsWidth = None
     if (((default_widths and seg.n_channels > 1) or dt_chosen) and dt is not None
             and fitter_params.get("max_total") is None and not shared_denominator):
         # not under a size bound of the caller's (as in fit_brdf_auto's widening)
-        seg, channel_dt = _widen_channels(fitter, seg, starts or dt, floors, consistent)
+        seg, channel_dt = _widen_channels(fitter, seg, starts or dt, floors, around)
         fitter.segments_ = seg
     sub = ds.meta.get("subset")
     if sub:
@@ -680,14 +685,16 @@ def _no_candidate(fitter: RationalFitter) -> bool:
 
 
 def _widen_channels(fitter: BRDFFitter, seg: Segments, dt: float | Sequence[float],
-                    floors: Array | None,
-                    consistent: bool = True) -> tuple[Segments, list[float] | None]:
+                    floors: Array | None, around: Neighbours | None
+                    ) -> tuple[Segments, list[float] | None]:
     """Default widths: each channel whose search had no candidate at all (every split it
     tested infeasible, nothing cut short) is fitted again alone at :func:`widened_dt`
     widths until it has one, up to :data:`MAX_DEFAULT_DT`; the channels that verified
     keep their fits and their width. Returns the segments (each widened channel's column
     replaced) and the width of each channel, or None when none was widened. ``floors``:
     each channel's absolute floor (from the noise level or the fraction of its peak).
+    ``around``: the samples' :func:`~ratfit.brdf.consistency.sample_neighbours` when
+    the segments are made consistent, else None.
 
     Measured noise differs by channel: garnet_red's R verifies at 0.06 with a 1e-3 floor
     while its G and B (noise 12-19 % of their diffuse values) have no candidate up to
@@ -703,8 +710,8 @@ def _widen_channels(fitter: BRDFFitter, seg: Segments, dt: float | Sequence[floa
                and d < MAX_DEFAULT_DT):
             d = widened_dt(d)
             one = _one_channel(seg, j, d, floors)
-            if consistent:
-                one, _ = consistent_segments(one)
+            if around is not None:
+                one, _ = consistent_segments(one, neighbours=around)
             alone = type(fitter)(**fitter.get_params()).fit(one)
             res = replace(alone.results_[0],
                           message=f"{alone.results_[0].message}; segments widened to "
