@@ -30,6 +30,7 @@ from ratfit.brdf.options import (
     BRDF_SOLVER,
     NOISE_FLOOR,
     UNKNOWN_PARAMETRIZATION,
+    VALUES,
     BRDFOptions,
 )
 from ratfit.brdf.parametrizations import (
@@ -157,6 +158,9 @@ RESEARCH_WORK_SHARE = 0.25
 # rows every rejection adds: cayman's R searched again up to 100 galloped to (50, 50),
 # where one split's active set reached 32 000 of 147 000 rows (minutes of DAQP a solve).
 RESEARCH_TOTAL_FACTOR = 2
+# the lower end of a log segment is at least this share of its upper end (a value of 0
+# is met as 1e-3 of the floor above it: exp(p / q) cannot reach 0)
+LOG_LOW = 1e-3
 
 
 def cos_theta_l(coords: ArrayLike, param: str) -> Array:
@@ -387,7 +391,7 @@ def channel_floors(y: Array, abs_width: AbsWidth, floor_rel: float | None) -> Ar
 def fit_brdf(ds: Dataset, *, dt: float | None = None, abs_width: AbsWidth = None,
              floor_rel: float | None = None, cosine: bool = False, clamp: float | None = None,
              positive_q: bool = False, consistent: bool | None = None,
-             shared_denominator: bool = False,
+             shared_denominator: bool = False, values: str = "linear",
              **fitter_params: Any):
     """Fit every channel of a BRDF dataset; returns (fitter, segments, brdf_meta).
 
@@ -402,8 +406,8 @@ def fit_brdf(ds: Dataset, *, dt: float | None = None, abs_width: AbsWidth = None
     None: when the widths are ratfit's defaults (segments a user gave are the user's).
     ``shared_denominator``: one q for every channel
     (:class:`ratfit.brdf.shared.SharedBRDFFitter`; ``max_total`` then bounds each
-    numerator; no channel is widened alone). ``brdf_meta`` is the ``"brdf"`` block of
-    the fit file.
+    numerator; no channel is widened alone). ``values="log"``: fit log values, so the fit
+    is exp(p / q) (:data:`VALUES`). ``brdf_meta`` is the ``"brdf"`` block of the fit file.
     """
     from ratfit.brdf.consistency import consistent_segments, sample_neighbours
     from ratfit.core.columns import constant_axes
@@ -445,6 +449,10 @@ def fit_brdf(ds: Dataset, *, dt: float | None = None, abs_width: AbsWidth = None
     around = sample_neighbours(seg.x) if consistent else None
     if around is not None:
         seg, merged = consistent_segments(seg, neighbours=around)
+    if values not in VALUES:
+        raise InputError(f"values must be one of {', '.join(VALUES)}, got {values!r}")
+    if values == "log":
+        fitter_params = {**fitter_params, "values": values}
     if fitter_params.get("polish_error", "auto") == "auto":
         # relative errors mean something where small values have a noise-level floor
         fitter_params = {**fitter_params,
@@ -508,6 +516,8 @@ def fit_brdf(ds: Dataset, *, dt: float | None = None, abs_width: AbsWidth = None
         "proof": [None if v is None else v.to_dict() for v in fitter.proofs_],
         # one q for every channel: each channel is stored as p_c / q with the same q
         "shared_denominator": bool(shared_denominator),
+        # "log": each channel's value is exp(p / q) of its stored p and q
+        "values": values,
     }
     if shared_denominator:
         meta["shared"] = _shared_block(fitter)
@@ -844,6 +854,23 @@ def subset_status(points: int, of: int) -> str:
             f"not checked at the other {of - points}")
 
 
+def log_segments(seg: Segments) -> Segments:
+    """The segments of log values: [log lo, log hi], with lo raised to
+    :data:`LOG_LOW` of hi first (a value of 0, or a floor far above lo, would put the
+    lower end at minus infinity; exp(p / q) is never 0). A fit inside them is inside the
+    value segments, and positive by construction."""
+    if np.any(~(seg.hi > 0)):
+        i, j = (int(v) for v in np.argwhere(~(seg.hi > 0))[0])
+        raise InputError(
+            f"a fit of log values needs every segment's upper end above 0 (row {i}, "
+            f"channel {seg.names[j]}: hi = {float(seg.hi[i, j])!r}); give the segments "
+            "a floor (--abs-width)")
+    lo = np.maximum(seg.lo, LOG_LOW * seg.hi)
+    with np.errstate(divide="ignore"):
+        center = None if seg.y is None else np.log(np.clip(seg.y, lo, seg.hi))
+    return Segments(seg.x, np.log(lo), np.log(seg.hi), center, seg.names)
+
+
 def nonnegative_segments(seg: Segments) -> Segments:
     """Segments with lo raised to 0: a BRDF value is never negative, so a fit that
     goes below 0 at a sample (allowed by a wide absolute floor) is not a fit."""
@@ -942,8 +969,10 @@ class BRDFFitter(RationalFitter):
                  polish_error: str = "auto",
                  used_coords: tuple[int, ...] | None = None,
                  solver: str = BRDF_SOLVER, time_limit: float | None = DEFAULT_TIME_LIMIT,
+                 values: str = "linear",
                  **params: Any) -> None:
         super().__init__(solver=solver, time_limit=time_limit, **params)
+        self.values = values
         self.parametrization = parametrization
         self.positive_q = positive_q
         self.physical = physical
@@ -953,6 +982,13 @@ class BRDFFitter(RationalFitter):
 
     def _fit_segments(self, segments: Segments) -> Self:
         """Search every channel, then polish and prove (``fit`` ends here)."""
+        if self.values not in VALUES:
+            raise InputError(f"values must be one of {', '.join(VALUES)}, got {self.values!r}")
+        if self.values == "log" and not self._full_search:
+            # the search, the polish and the proof work on log values; the value
+            # segments stay for the last check of exp(p / q) itself
+            self._value_segments = segments
+            segments = log_segments(segments)
         if not self._full_search:
             self._points: dict[int, list[Array]] = {}
         self._checks: dict[int, Any] = {}
@@ -987,7 +1023,37 @@ class BRDFFitter(RationalFitter):
         proofs = self.__dict__.get("_proofs", {})
         self.proofs_ = [proofs.get(id(r.rational)) if r.rational is not None else None
                         for r in self.results_]
+        if self.values == "log" and not self._full_search:
+            self.segments_ = self._value_segments
+            self.results_ = [self._values_checked(r, j) if r.success else r
+                             for j, r in enumerate(self.results_)]
         return self
+
+    def _values_checked(self, res: FitResult, j: int) -> FitResult:
+        """A verified fit of log values checked as its values: exp(p / q), as every
+        evaluator computes it, inside every value segment (the log segments' check
+        leaves exp's rounding), with the errors the result reports those of the values."""
+        rf, old = res.rational, res.verification
+        assert rf is not None and old is not None
+        ver = verify(rf, self._value_segments, channel=j, box_check=False, exp_values=True)
+        if ver.n_violations == 0 and np.isfinite(ver.linf):
+            return replace(res, verification=replace(
+                ver, verified=True, poles_in_domain=old.poles_in_domain,
+                pole_locations=old.pole_locations,
+                denominator_sign_changes=old.denominator_sign_changes))
+        return replace(res, success=False, status=2,
+                       verification=replace(ver, verified=False),
+                       message=f"{res.message}; rejected: exp(p/q) misses "
+                               f"{ver.n_violations} value segment(s) by up to "
+                               f"{ver.max_violation:.3g}")
+
+    def predict(self, X: ArrayLike) -> Array:
+        """As :meth:`RationalFitter.predict`; for a fit of log values, exp(p / q)."""
+        out = super().predict(X)
+        if self.values == "log":
+            with np.errstate(over="ignore"):
+                return np.exp(out)
+        return out
 
     def _search_with_full_proof(self, res: FitResult, seg: Segments, j: int) -> FitResult:
         """Channel ``j`` searched again with the full proof on every candidate, when the
@@ -1013,6 +1079,8 @@ class BRDFFitter(RationalFitter):
         again._full_search = True
         again._final_proof = True
         again._points = {0: list(self._points_of(j))}
+        if self.values == "log":  # ``seg`` holds the log values already
+            again._value_segments = self._value_segments.channel(j)
         again._fit_segments(seg.channel(j))
         out = again.results_[0]
         if not out.success:
@@ -1052,7 +1120,8 @@ class BRDFFitter(RationalFitter):
             for attempt in range(2):
                 fam = rf.to_family()
                 ver = verify(fam, seg, channel=j, box_check=False)
-                proof = prove_validity(fam, self.parametrization, keep=self.used_coords)
+                proof = prove_validity(fam, self.parametrization, keep=self.used_coords,
+                                       values=self.values)
                 self.__dict__.setdefault("_proofs", {})[id(fam)] = proof
                 self._checks[id(fam)] = self._checks.get(id(rf))
                 if ver.n_violations == 0 and np.isfinite(ver.linf) and proof.proved:
@@ -1121,6 +1190,7 @@ class BRDFFitter(RationalFitter):
                 return None
             cand = polish_fit(rf, seg, j, weights=self._polish_weights(seg, j),
                               positive_at=pts, solver=self.solver,
+                              numerator=self.values == "linear",
                               deadline=deadline, method=method,
                               repair=repair, work=work)
             if cand is None:
@@ -1137,8 +1207,8 @@ class BRDFFitter(RationalFitter):
     def _polish_weights(self, seg: Segments, j: int) -> Array | None:
         """Each sample's weight in the polish: 1/(|y| + NOISE_FLOOR) for the relative
         error, None (all 1) for the absolute one."""
-        if self.polish_error != "relative":
-            return None
+        if self.polish_error != "relative" or self.values == "log":
+            return None  # (an error of log values is a relative error already)
         return 1.0 / (np.abs(seg.center[:, j]) + NOISE_FLOOR)
 
     def _polish_deadline(self) -> float | None:
@@ -1243,7 +1313,8 @@ class BRDFFitter(RationalFitter):
             grid = np.concatenate([grid, *extra])
         if grid.size == 0:
             return system
-        return _valid_rows(system, space.to_window(grid), numerator=self.physical)
+        return _valid_rows(system, space.to_window(grid),
+                           numerator=self.physical and self.values == "linear")
 
     def _valid_grid_for(self, domain: ArrayLike) -> Array | None:
         dom = np.asarray(domain, dtype=float)
@@ -1272,7 +1343,8 @@ class BRDFFitter(RationalFitter):
         if rf.space.dim == 1 and ver.poles_in_domain:
             return ver
         keep = self.used_coords
-        chk = check_validity(rf, self.parametrization, keep=keep)
+        chk = check_validity(rf, self.parametrization, keep=keep,
+                             numerator=self.values == "linear")
         if chk is None:  # nothing says what is valid: the plain box check decides
             return ver if box_checked else verify(rf, seg, channel=j)
         if chk.valid:
@@ -1281,7 +1353,7 @@ class BRDFFitter(RationalFitter):
             # candidate and one that runs out of pieces lets it on; the chosen fit gets
             # the full proof (:meth:`_proved`), which alone makes it a success.
             final = self._final_proof
-            proof = prove_validity(rf, self.parametrization, keep=keep,
+            proof = prove_validity(rf, self.parametrization, keep=keep, values=self.values,
                                    max_boxes=40_000 if final else SEARCH_PROOF_BOXES)
             self.__dict__.setdefault("_proofs", {})[id(rf)] = proof
             if not proof.proved and (final or proof.refuted):
@@ -1293,7 +1365,8 @@ class BRDFFitter(RationalFitter):
         if len(chk.bad_points):
             # constraint generation: later splits keep q > 0, p >= 0 there too
             self._points_of(j).append(_spread(chk.bad_points, SEARCH_POINTS))
-        if np.all(seg.lo[:, j] >= 0):
+        if self.values == "log" or np.all(seg.lo[:, j] >= 0):
+            # (a log fit's value exp(p / q) is positive wherever it is finite)
             # every (finite) value is inside its segment here (checked above): r >= lo >= 0
             at_samples = True
         else:
@@ -1412,6 +1485,11 @@ class BRDFFit:
     @property
     def n_channels(self) -> int:
         return len(self.saved.channels)
+
+    @property
+    def values(self) -> str:
+        """"log": each channel's value is exp(p / q) (:attr:`SavedFit.values`)."""
+        return self.saved.values
 
     @property
     def channel_names(self) -> tuple[str, ...]:

@@ -19,7 +19,7 @@ from ratfit.core.solvers import first_available
 from ratfit.errors import InputError
 
 __all__ = ["BRDF_OPTIONS", "BRDF_SOLVER", "NOISE_FLOOR", "POLISH_ERRORS",
-           "BRDFOptions", "UNKNOWN_PARAMETRIZATION"]
+           "BRDFOptions", "UNKNOWN_PARAMETRIZATION", "VALUES"]
 
 # DAQP first: quadprog was seen looping forever inside one call on a BRDF QP with
 # validity rows (1217 x 37, garnet_red) that DAQP solves in 6 ms.
@@ -37,6 +37,10 @@ NOISE_FLOOR = 1e-3
 #: RUSIN_TH_TD_PD); under a floor of 0.1 % of the peak it raises mystique B's RMSE from
 #: 0.059 to 0.78 at a peak of 591 and leaves garnet_red's diffuse colour as wrong.
 POLISH_ERRORS = ("auto", "absolute", "relative")
+#: What a BRDF fit's p / q approximates: the values ("linear": the fit is p / q, proved
+#: q > 0 and p >= 0) or their logarithms ("log": the fit is exp(p / q), proved q > 0;
+#: positive by construction, and a relative segment width is one log width at every value).
+VALUES = ("linear", "log")
 #: The parametrization of coordinates no registry entry describes: the plain pole check.
 UNKNOWN_PARAMETRIZATION = "UNKNOWN"
 
@@ -79,6 +83,9 @@ BRDF_OPTIONS = extend_spec(
            "Error the polish minimises: relative (to |y| + 1e-3), absolute, or auto "
            "(relative when the segments have an absolute floor).",
            POLISH_ERRORS, cli=False),
+    Option("values", "choice", "linear",
+           "What p / q fits: the values (linear) or their logarithms (log: the fit is "
+           "exp(p / q), positive by construction).", VALUES, cli=False),
     Option("used_coords", "indices", None,
            "Coordinates of the parametrization the data holds (None: all).",
            validator=_check_coords, cli=False),
@@ -99,6 +106,7 @@ class BRDFOptions(FitOptions):
     physical: bool = True
     polish: bool = True
     polish_error: str = "auto"
+    values: str = "linear"
     used_coords: tuple[int, ...] | None = None
 
 

@@ -67,7 +67,7 @@ SHARED_MAX_N = 60
 SHARED_MAX_M = 60
 # Search options of the per-channel fit that the shared search has no use for: the
 # BRDF path's own (handled here) and the ones a shared search refuses unless default.
-_BRDF_ONLY = ("positive_q", "physical", "polish", "polish_error")
+_BRDF_ONLY = ("positive_q", "physical", "polish", "polish_error", "values")
 
 
 def shared_valid_rows(system: SharedSystem, t_grid: Array) -> AppendedRows:
@@ -261,6 +261,9 @@ class SharedBRDFFitter:
         if params.get("physical", True) is False:
             raise InputError("a shared denominator is fitted with the physical validity "
                              "rows and proof: physical=False is not available")
+        if params.get("values", "linear") != "linear":
+            raise InputError("a shared denominator fits the values as p_c / q: "
+                             "drop values=\"log\"")
         for key in ("n", "total"):
             if params.get(key) is not None:
                 raise InputError(f"a shared denominator searches the numerator sizes itself: "

@@ -170,14 +170,17 @@ class ValidityCheck:
 
     def summary(self) -> str:
         state = "valid" if self.valid else "INVALID"
+        r = f", min r/max r {self.min_r:.3g}" if np.isfinite(self.min_r) else ""
         return (f"{state} on {self.checked} direction pairs in the domain ({self.method}); "
-                f"min q/max|q| {self.min_q:.3g}, min r/max r {self.min_r:.3g}")
+                f"min q/max|q| {self.min_q:.3g}{r}")
 
 
 def check_validity(rf: RationalFunction, param: str, domain: ArrayLike | None = None,
                    points: int = 150_000, starts: int = 24,
-                   keep: ArrayLike | None = None) -> ValidityCheck | None:
-    """Dense, adaptive check that q > 0 and p >= 0 on valid configurations in ``domain``.
+                   keep: ArrayLike | None = None,
+                   numerator: bool = True) -> ValidityCheck | None:
+    """Dense, adaptive check that q > 0 and p >= 0 on valid configurations in ``domain``
+    (q > 0 alone without ``numerator``: a fit of log values, exp(p / q) > 0 wherever q is).
 
     A grid of direction pairs offset from :func:`configurations`' (so the
     constraint grid proves nothing here), then a compass search in angle space
@@ -196,7 +199,8 @@ def check_validity(rf: RationalFunction, param: str, domain: ArrayLike | None = 
         return ValidityCheck(True, 0, np.inf, np.inf, np.zeros((0, dom.shape[0])),
                              "no direction pair in the domain")
     q = rf.denominator(c)
-    pv = rf.numerator(c)
+    # without the numerator's condition p counts as positive wherever q is
+    pv = rf.numerator(c) if numerator else np.abs(q)
     sign = 1.0 if np.sum(q > 0) >= np.sum(q < 0) else -1.0
     q, pv = sign * q, sign * pv
     qs = float(np.max(np.abs(q))) or 1.0
@@ -205,7 +209,8 @@ def check_validity(rf: RationalFunction, param: str, domain: ArrayLike | None = 
     found = [c[(q <= 0) | (pv < 0)]]
     per = max(3, int(round(points ** (1.0 / k))))
     step = (_bounds(k)[:, 1] - _bounds(k)[:, 0]) / per
-    for use_q, vals in ((True, q / qs), (False, pv / (qs * rs))):
+    searches = ((True, q / qs), (False, pv / (qs * rs))) if numerator else ((True, q / qs),)
+    for use_q, vals in searches:
         pick = np.argsort(vals)[: min(starts, len(vals))]
         pts, best = _compass(rf, p, dom, a[pick], vals[pick], step, sign, qs,
                              qs * rs, use_q=use_q, cols=cols)
@@ -214,14 +219,16 @@ def check_validity(rf: RationalFunction, param: str, domain: ArrayLike | None = 
     bad = np.concatenate(found) if found else np.zeros((0, dom.shape[0]))
     qa, pa = q, pv  # the grid's values, plus those of the bad points found
     if len(bad):
-        qb, pb = sign * rf.denominator(bad), sign * rf.numerator(bad)
+        qb = sign * rf.denominator(bad)
+        pb = sign * rf.numerator(bad) if numerator else np.abs(qb)
         keep_b = (qb <= 0) | (pb < 0) | ~np.isfinite(qb) | ~np.isfinite(pb)
         bad, qb, pb = bad[keep_b], qb[keep_b], pb[keep_b]
         qa, pa = np.concatenate([q, qb]), np.concatenate([pv, pb])
     with np.errstate(divide="ignore", invalid="ignore"):
         ra = pa / qa
     min_q = float(np.min(qa) / qs)
-    min_r = float(np.nanmin(np.where(qa > 0, ra, -np.inf)) / rs)
+    # (a fit of log values has no r to bound: exp(p / q) > 0 wherever q > 0)
+    min_r = float(np.nanmin(np.where(qa > 0, ra, -np.inf)) / rs) if numerator else np.inf
     valid = len(bad) == 0 and min_q > 0 and min_r >= 0 and bool(np.all(np.isfinite(qa)))
     return ValidityCheck(valid, checked, min_q, min_r, bad,
                          f"offset grid of {len(c)} + compass search from {2 * starts} minima")
@@ -308,6 +315,8 @@ class ValidityProof:
     p: SignProof
     region: str
     bad_points: Array  # coordinates to constrain where the proof failed
+    # "log": the fit's value is exp(p / q), positive wherever q is; p's sign is not needed
+    values: str = "linear"
 
     @property
     def refuted(self) -> bool:
@@ -316,10 +325,17 @@ class ValidityProof:
 
     def summary(self) -> str:
         state = "proved" if self.proved else "NOT PROVED"
+        if self.values == "log":
+            return (f"{state}: q > 0 {self.q.summary()}; the value exp(p/q) > 0 wherever "
+                    f"q > 0; region: {self.region}")
         return (f"{state}: q > 0 {self.q.summary()}; p >= 0 {self.p.summary()}; "
                 f"region: {self.region}")
 
     def to_dict(self) -> dict[str, object]:
+        if self.values == "log":
+            return {"proved": self.proved, "method": self.q.method, "region": self.region,
+                    "q_margin": self.q.margin, "p_margin": None, "values": "log",
+                    "boxes": self.q.boxes}
         return {"proved": self.proved, "method": self.q.method, "region": self.region,
                 "q_margin": self.q.margin, "p_margin": self.p.margin,
                 "boxes": self.q.boxes + self.p.boxes}
@@ -404,9 +420,10 @@ _EXCLUDERS = {"RUSIN_TH_TD_PD": _rusin_excluder, "RUSIN_TH_TD_SYM": _sym_exclude
 
 
 def prove_validity(rf: RationalFunction, param: str, keep: ArrayLike | None = None,
-                   max_boxes: int = 40_000) -> ValidityProof:
+                   max_boxes: int = 40_000, values: str = "linear") -> ValidityProof:
     """Prove q > 0 and p >= 0 of ``rf`` (in its family form) on the evaluated region,
-    examining at most ``max_boxes`` pieces for each of q and p."""
+    examining at most ``max_boxes`` pieces for each of q and p. ``values="log"``: the
+    fit's value is exp(p / q), so q > 0 alone is proved."""
     from ratfit.core.positivity import prove_positive
 
     space = rf.space
@@ -423,10 +440,15 @@ def prove_validity(rf: RationalFunction, param: str, keep: ArrayLike | None = No
         region = "the domain box less pieces no pair of directions reaches"
     fam_name = space.family.name
     qp = prove_positive(sign * Q, fam_name, strict=True, exclude=exclude, max_boxes=max_boxes)
-    pp = prove_positive(sign * P, fam_name, strict=False, exclude=exclude, max_boxes=max_boxes)
+    if values == "log":
+        pp = SignProof(True, np.inf, 1.0, False, np.zeros((0, space.dim)), 0,
+                       "not needed: exp(p/q) > 0")
+    else:
+        pp = prove_positive(sign * P, fam_name, strict=False, exclude=exclude,
+                            max_boxes=max_boxes)
     pts = [space.from_window(s.points) for s in (qp, pp) if len(s.points)]
     bad = np.concatenate(pts) if pts else np.zeros((0, space.dim))
-    return ValidityProof(qp.proved and pp.proved, qp, pp, region, bad)
+    return ValidityProof(qp.proved and pp.proved, qp, pp, region, bad, values)
 
 
 def reprove_saved(saved: object) -> bool | None:
@@ -444,4 +466,6 @@ def reprove_saved(saved: object) -> bool | None:
     dropped = meta.get("dropped_coords") or {}
     keep = None if not dropped else np.setdiff1d(np.arange(p.dim),
                                                 [int(k) for k in dropped])
-    return all(prove_validity(ch.rational, p.name, keep=keep).proved for ch in channels)
+    values = str(meta.get("values", "linear"))
+    return all(prove_validity(ch.rational, p.name, keep=keep, values=values).proved
+               for ch in channels)

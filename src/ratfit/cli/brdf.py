@@ -9,7 +9,7 @@ from typing import Any
 import click
 import numpy as np
 
-from ratfit.brdf.options import BRDF_SOLVER, POLISH_ERRORS, BRDFOptions
+from ratfit.brdf.options import BRDF_SOLVER, POLISH_ERRORS, VALUES, BRDFOptions
 from ratfit.cli.main import (
     EXIT_NO_FIT,
     LazyGroup,
@@ -120,6 +120,11 @@ def _split_channels(values: tuple[str, ...]) -> list[str]:
               help="What the polish minimises: plain squared errors, or errors relative "
                    "to |y| + 1e-3 1/sr (a diffuse part far below the peak counts as much "
                    "as the peak).")
+@click.option("--values", "values", type=click.Choice(VALUES), default=BRDFOptions.values,
+              show_default=True,
+              help="What p / q fits: the values, or their logarithms (the fit is "
+                   "exp(p / q): never negative, proved free of poles like any fit, and a "
+                   "relative width costs the same at the diffuse values as at the peak).")
 @click.option("--shared-denominator", "shared", is_flag=True,
               help="One denominator q for every channel, one numerator p_c per channel: "
                    "minimises sum(n_c) + m (--m fixes q's size, --max-total bounds each "
@@ -131,7 +136,7 @@ def brdf_fit(input_path: Path, output: Path | None, fmt: str | None, param: str 
              cosine: bool,
              clamp: float | None, positive_q: bool, channels: tuple[str, ...], color: str,
              max_points: int | None, holdout: int | None, no_polish: bool,
-             polish_error: str, as_json: bool, shared: bool = False,
+             polish_error: str, as_json: bool, shared: bool = False, values: str = "linear",
              **options: Any) -> None:
     """Fit each channel of a measured BRDF with a verified rational function."""
     from ratfit.jobs import BRDFFitRequest, fit_brdf_file
@@ -147,7 +152,7 @@ def brdf_fit(input_path: Path, output: Path | None, fmt: str | None, param: str 
         "floor_rel": floor_rel, "cosine": cosine, "clamp": clamp, "positive_q": positive_q,
         "channels": _split_channels(channels), "color": color, "max_points": max_points,
         "holdout": holdout, "polish": not no_polish, "polish_error": polish_error,
-        "shared_denominator": shared, "output": output})
+        "values": values, "shared_denominator": shared, "output": output})
     cb, stop = _progress(True)  # stderr: JSON on stdout stays clean
     try:
         report = fit_brdf_file(request.with_progress(cb))

@@ -69,6 +69,7 @@ def polish_fit(
     iterations: int = 3,
     repair: bool = False,
     work: WorkBudget | None = None,
+    numerator: bool = True,
 ) -> RationalFunction | None:
     """The least-squares fit of the same size as ``rf`` whose values stay in the
     inner part (a fraction ``tau`` of each width off both ends) of every segment.
@@ -79,7 +80,7 @@ def polish_fit(
 
     ``weights`` (N,) weight each point's error (default 1: plain RMSE).
     ``positive_at`` (G, d) are points (original coordinates) where q > 0 and
-    p >= 0 are also required. Returns None when the QP fails; the result is
+    (``numerator``) p >= 0 are also required. Returns None when the QP fails; the result is
     a candidate, to be verified by the caller. ``work`` counts each QP solve
     (each active-set round of each cut-off); once it is exhausted the polish gives
     up (None) before the next solve: a count, so where it stops does not depend on
@@ -110,7 +111,7 @@ def polish_fit(
     if np.any(Q @ c[n:] <= 0):
         return None
     w = np.ones(x.shape[0]) if weights is None else np.asarray(weights, dtype=float).ravel()
-    grid, p_rows = _positivity_rows(rf, positive_at)
+    grid, p_rows = _positivity_rows(rf, positive_at, numerator)
     methods = {"auto": ("qp", "socp"), "qp": ("qp",), "socp": ("socp",)}[method]
     if importlib.util.find_spec("clarabel") is None:
         methods = tuple(x for x in methods if x != "socp") or ("qp",)
@@ -245,9 +246,9 @@ def _polish_pass(P: Array, Q: Array, lo: Array, hi: Array, y: Array, w: Array, c
     return None
 
 
-def _positivity_rows(rf: RationalFunction,
-                     positive_at: ArrayLike | None) -> tuple[Array, Array]:
-    """Rows G c >= h keeping q > 0 and p >= 0 at ``positive_at``, and 1 / (the norm
+def _positivity_rows(rf: RationalFunction, positive_at: ArrayLike | None,
+                     numerator: bool = True) -> tuple[Array, Array]:
+    """Rows G c >= h keeping q > 0 and (``numerator``) p >= 0 at ``positive_at``, and 1 / (the norm
     each p row was divided by), 0 on q rows; built once for every pass and cut-off.
     (q > 0 at the data is part of :class:`_BandRows`.)"""
     k = rf.n + rf.m
@@ -255,6 +256,8 @@ def _positivity_rows(rf: RationalFunction,
     if pts is None or not len(pts):
         return np.zeros((0, k)), np.zeros(0)
     Pg, Qg = _design(rf, pts)
+    if not numerator:
+        return np.hstack([np.zeros_like(Pg), Qg]), np.zeros(len(Qg))
     pn = np.linalg.norm(Pg, axis=1)
     pn[pn == 0] = 1.0
     grid = np.vstack([np.hstack([np.zeros_like(Pg), Qg]),

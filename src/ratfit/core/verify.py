@@ -90,13 +90,15 @@ class Verification:
 
 
 def verify(rf: RationalFunction, seg: Segments, *, channel: int = 0,
-           box_check: bool = True) -> Verification:
+           box_check: bool = True, exp_values: bool = False) -> Verification:
     """Evaluate ``rf`` at every point of ``seg`` (one channel) and check poles.
 
     Non-finite values count as violations (q = 0 at a data point is a miss).
     ``box_check=False`` (n-D only) leaves out q's sign on a grid of the domain
     box, for callers that check a region of their own instead (BRDFs: the
     direction pairs above the horizon); q's sign at the data is still checked.
+    ``exp_values``: the fit's value is exp(p / q) (a fit of log values), checked against
+    segments of the values themselves.
 
     Parameters
     ----------
@@ -122,8 +124,8 @@ def verify(rf: RationalFunction, seg: Segments, *, channel: int = 0,
     y = seg.center[:, channel]
     q = rf.denominator(seg.x)
     p = rf.numerator(seg.x)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        r = p / q
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+        r = np.exp(p / q) if exp_values else p / q
     finite = np.isfinite(r)
     below = np.where(finite, lo - r, np.inf)
     above = np.where(finite, r - hi, np.inf)

@@ -768,14 +768,15 @@ def export_source(
     saved: SavedFit, lang: str, *, parametrization: str | None = None, form: str = "auto",
     points: ArrayLike | None = None, prefix: str = "ratfit", source: str = "",
     rtol: float = HORNER_RTOL, cosine_weighted: bool = False, fold_phi_d: bool = False,
-    segments: Any = None, segments_source: str = "the data",
+    segments: Any = None, segments_source: str = "the data", log_values: bool = False,
 ) -> ExportResult:
     """Source text of ``saved`` in ``lang`` (c, glsl, python).
 
     C and Python use double precision; GLSL uses float (the usual shader type),
     so expect single-precision rounding there. ``cosine_weighted``: the fit models
     f cos(theta_l), so *_brdf divides by L.z; ``fold_phi_d``: phi_d is folded into
-    [0, pi) before evaluation (MERL tables), as :class:`ratfit.brdf.fitter.BRDFFit` does.
+    [0, pi) before evaluation (MERL tables), as :class:`ratfit.brdf.fitter.BRDFFit` does;
+    ``log_values``: each channel's value is exp(p / q) (a BRDF fit of log values).
 
     ``segments`` (:class:`~ratfit.core.segments.Segments` in the fit's variables): every
     one is checked with the exported formula as the C/Python code evaluates it
@@ -804,6 +805,9 @@ def export_source(
     forms = plan_forms(saved, form=form, points=points, rtol=rtol)
     checks: tuple[FormCheck, ...] = ()
     if segments is not None and lang_key != "glsl":
+        if log_values:
+            raise InputError("the segments of a fit of log values are checked on exp(p / q): "
+                             "not in the exported form yet")
         checks = check_forms(forms, segments, segments_source)
         bad = [c for c in checks if not c.ok]
         # An edited or legacy file exported with --trust-edited is NOT VERIFIED anyway (the
@@ -824,7 +828,11 @@ def export_source(
     ]
     for f in forms:
         head.append(f"{cm} channel {f.name!r}: {f.form} ({f.reason}).")
-    head += [f"{cm} {line}" for line in _exactness_lines(lang_key, forms, checks)]
+    if log_values:
+        head.append(f"{cm} Each channel's value is exp(p / q): p / q fits the logarithm of "
+                    "the values (positive by construction).")
+    head += [f"{cm} {line}" for line in _exactness_lines(lang_key, forms, checks,
+                                                                 log_values)]
     if pname:
         head.append(f"{cm} Input coordinates: {pname}, computed from directions by the "
                     "coords function.")
@@ -881,7 +889,9 @@ def export_source(
                 terms = ", ".join(f"{lg.lit(f.scale[i])} * x[{i}] + {lg.lit(f.shift[i])}"
                                   for i in range(d))
                 lines.append(f"    t = [{terms}]")
-            lines.append(f"    out.append({prefix}_p{j}(t) / {prefix}_q{j}(t))")
+            ratio = f"{prefix}_p{j}(t) / {prefix}_q{j}(t)"
+            lines.append(f"    out.append(math.exp({ratio}))" if log_values else
+                         f"    out.append({ratio})")
         else:
             for i in range(d):
                 if f.scale is None or f.shift is None:
@@ -889,7 +899,9 @@ def export_source(
                 else:
                     lines.append(f"    t[{i}] = {lg.lit(f.scale[i])} * x[{i}] + "
                                  f"{lg.lit(f.shift[i])};")
-            lines.append(f"    {dst}[{j}] = {prefix}_p{j}(t) / {prefix}_q{j}(t);")
+            ratio = f"{prefix}_p{j}(t) / {prefix}_q{j}(t)"
+            lines.append(f"    {dst}[{j}] = exp({ratio});" if log_values else
+                         f"    {dst}[{j}] = {ratio};")
     lines += ["    return out"] if py else ["}"]
     if pname:
         lines += ["", ""] if py else [""]
@@ -919,7 +931,7 @@ _C_EXACT = [
 
 
 def _exactness_lines(lang: str, forms: tuple[ChannelForm, ...],
-                     checks: tuple[FormCheck, ...]) -> list[str]:
+                     checks: tuple[FormCheck, ...], log_values: bool = False) -> list[str]:
     """What the header may claim about the exported formula itself."""
     if lang == "glsl":
         return ["NOT CHECKED in this form: GLSL evaluates in float precision (and GPUs "
@@ -933,7 +945,10 @@ def _exactness_lines(lang: str, forms: tuple[ChannelForm, ...],
         same = [f.name for f in forms if f.form == "recurrence"]
         if same:
             out.append(f"Channel(s) {', '.join(same)}: the same operations in the same order "
-                       "as ratfit's own evaluation (equal to ratfit eval bit for bit).")
+                       "as ratfit's own evaluation" + (
+                           " (p / q bit for bit; then exp, which the C library and numpy "
+                           "may round differently in the last bit)." if log_values else
+                           " (equal to ratfit eval bit for bit)."))
         out.append("Segments NOT re-checked with this formula (no data at export; "
                    "`ratfit export --data` checks every one).")
     return out
@@ -991,6 +1006,7 @@ def export_fit(
     res = export_source(saved, lang, parametrization=None if bf is None else bf.parametrization,
                         cosine_weighted=bool(getattr(bf, "cosine_weighted", False)),
                         fold_phi_d=bool(getattr(bf, "fold_phi_d", False)), form=form,
+                        log_values=saved.values == "log",
                         points=points, prefix=prefix, source=Path(fit_path).name,
                         segments=seg, segments_source=src)
     with atomic_open(output, "w") as fh:

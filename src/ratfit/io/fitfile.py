@@ -71,9 +71,26 @@ class SavedFit:
         return self.integrity == "sealed" and all(
             c.summary.get("verified") is True for c in self.channels)
 
+    @property
+    def values(self) -> str:
+        """"log" when each channel's value is exp(p / q) (a BRDF fit of log values,
+        ``"values"`` in the file's ``brdf`` block), else "linear": p / q."""
+        brdf = self.extra.get("brdf")
+        return str(brdf.get("values", "linear")) if isinstance(brdf, dict) else "linear"
+
+    def channel_values(self, j: int, x: ArrayLike) -> NDArray[np.float64]:
+        """Channel ``j``'s values at points x: p / q, or exp(p / q) for log values (the
+        one place a saved fit's value is defined; every evaluator comes here)."""
+        r = np.asarray(self.channels[j].rational(x), dtype=np.float64)
+        if self.values == "log":
+            with np.errstate(over="ignore"):
+                return np.exp(r)
+        return r
+
     def __call__(self, x: ArrayLike) -> NDArray[np.float64]:
         """Values (N, k) of every channel at points x."""
-        return np.stack([c.rational(x) for c in self.channels], axis=1)
+        return np.stack([self.channel_values(j, x) for j in range(len(self.channels))],
+                        axis=1)
 
 
 def file_sha256(path: str | os.PathLike[str]) -> str:
@@ -657,6 +674,7 @@ _BRDF_FIELDS: dict[str, tuple[Any, str]] = {
     "proof": (_list_of(_opt(lambda v: isinstance(v, dict) and _is_bool(v.get("proved")))),
               "a list of nulls or objects with a true/false 'proved'"),
     "shared_denominator": (_is_bool, "true or false"),
+    "values": (lambda v: v in ("linear", "log"), "\"linear\" or \"log\""),
     "shared": (_opt(lambda v: isinstance(v, dict) and _is_int(v.get("m"))
                     and _is_int(v.get("coefficients"))),
                "null or an object with integers 'm' and 'coefficients'"),

@@ -342,6 +342,9 @@ def _metrics(report: BRDFFitReport) -> dict[str, dict[str, float]]:
     seg = report.segments
     pred = np.stack([r.rational(seg.x) for r in report.results  # type: ignore[misc]
                      ], axis=1)
+    if report.meta.get("values") == "log":  # the fit is exp(p / q)
+        with np.errstate(over="ignore"):
+            pred = np.exp(pred)
     cl = None
     if report.parametrization != UNKNOWN_PARAMETRIZATION:
         try:

@@ -359,8 +359,7 @@ def _slice(saved: SavedFit, path: str | Path, x: ArrayLike | None, y: ArrayLike 
     grid = np.linspace(dom[dim, 0], dom[dim, 1], 600)
     pts = np.tile(at_pt, (grid.size, 1))
     pts[:, dim] = grid
-    rf = saved.channels[channel].rational
-    curve = np.asarray(rf(pts), dtype=float).ravel()
+    curve = np.asarray(saved.channel_values(channel, pts), dtype=float).ravel()
     fig, axes = plt.subplots(2, 1, figsize=(8, 6), sharex=True,
                              gridspec_kw={"height_ratios": [3, 2]})
     shown = [curve]
@@ -395,7 +394,7 @@ def _slice(saved: SavedFit, path: str | Path, x: ArrayLike | None, y: ArrayLike 
         if hidden:
             what += f"; {hidden} at or below 0 not drawn"
         axes[0].plot(xs * factor, draw(ys), ".", ms=3, color="C0", label=what)
-        err = rf(xa[rows][order]) - ys
+        err = np.asarray(saved.channel_values(channel, xa[rows][order]), dtype=float).ravel() - ys
         axes[1].plot(xs * factor, err, ".-", ms=3, lw=0.8, color="C3", label="r - y")
         axes[1].axhline(0.0, color="k", lw=0.5)
         axes[1].legend(fontsize=8)
@@ -438,8 +437,7 @@ def plot_error(saved: SavedFit, path: str | Path, x: ArrayLike, y: ArrayLike, *,
     d = saved.space.dim
     xa = np.asarray(x, dtype=float).reshape(-1, d)
     ya = np.asarray(y, dtype=float).reshape(xa.shape[0], -1)[:, channel]
-    rf = saved.channels[channel].rational
-    err = rf(xa) - ya
+    err = np.asarray(saved.channel_values(channel, xa), dtype=float).ravel() - ya
     factor, xlabel = coord_axis(_names(names, d)[dim], style)
     fig, ax = plt.subplots(figsize=(8, 4))
     xs = xa[:, dim] * factor
@@ -471,7 +469,7 @@ def plot_relative_error(saved: SavedFit, path: str | Path, x: ArrayLike, y: Arra
     xa = np.asarray(x, dtype=float).reshape(-1, d)
     ya = np.asarray(y, dtype=float).reshape(xa.shape[0], -1)[:, channel]
     floor = rel_floor_value(ya, style.rel_floor)
-    rel = relative_error(saved.channels[channel].rational(xa), ya, floor)
+    rel = relative_error(saved.channel_values(channel, xa), ya, floor)
     factor, xlabel = coord_axis(_names(names, d)[dim], style)
     xs = xa[:, dim] * factor
     fig, ax = plt.subplots(figsize=(8, 4))

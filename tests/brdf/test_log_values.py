@@ -1,0 +1,169 @@
+"""BRDF fits of log values (`brdf fit --values log`, ``fit_brdf(values="log")``): the fit
+is exp(p / q), so it is positive by construction; q > 0 is proved as for any fit, every
+sample's value segment is met by exp(p / q) itself, and every evaluator (the Python API,
+`brdf eval`, the C and Python exports) computes the same exp(p / q)."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+from conftest import above_horizon, exported_brdf_in_c, one_error_line, run_cli
+
+from ratfit.brdf.analytic_models import Model
+from ratfit.brdf.fitter import (
+    brdf_fit_of,
+    brdf_segments,
+    fit_brdf,
+    load_brdf_fit,
+    log_segments,
+    save_brdf_fit,
+)
+from ratfit.brdf.parametrizations import get_parametrization
+from ratfit.brdf.validity import reprove_saved
+from ratfit.core.segments import Segments
+from ratfit.errors import FileFormatError, InputError
+from ratfit.io.data import Dataset
+
+FRAME = "RUSIN_TH_TD_SYM"
+# a glossy lobe over a diffuse part 1e-2..1e-3 of the peak (a glossy paint's range)
+PARAMS = [0.02, 1.0, 0.2, 0.05]  # values 7e-3 .. 0.54 at these pairs
+WIDTHS = {"dt": 0.05, "abs_width": 1e-3, "time_limit": None}
+
+
+def _material(n: int, seed: int = 0) -> Dataset:
+    rng = np.random.default_rng(seed)
+    L, V = above_horizon(rng, n), above_horizon(rng, n)
+    y = Model("lambert+ggx")(L, V, PARAMS)[:, None]
+    x = get_parametrization(FRAME)._from(L, V)
+    return Dataset(x=x, y=y, output_names=("Y",), meta={"param_in": FRAME, "source": "lobe"})
+
+
+@pytest.fixture(scope="module")
+def fitted():
+    ds = _material(300)
+    return ds, fit_brdf(ds, values="log", **WIDTHS)
+
+
+def test_a_log_fit_meets_every_value_segment_with_exp_p_over_q(fitted):
+    ds, (fitter, seg, meta) = fitted
+    assert fitter.success_ and meta["values"] == "log"
+    rf = fitter.results_[0].rational
+    # the value segments, rebuilt from the data as the fit file records them
+    again = brdf_segments(ds, dt=WIDTHS["dt"], abs_width=WIDTHS["abs_width"])
+    np.testing.assert_array_equal(seg.lo, np.maximum(again.lo, 0.0))
+    np.testing.assert_array_equal(seg.hi, again.hi)
+    v = np.exp(rf(ds.x)).ravel()
+    assert np.all((v >= seg.lo[:, 0]) & (v <= seg.hi[:, 0]))
+    # the polish ran on log values, whose errors are relative ones
+    assert "least-squares polish: relative RMSE" in fitter.results_[0].message
+
+
+def test_a_log_fit_proves_q_alone_and_says_why(fitted, tmp_path):
+    _, (fitter, _seg, meta) = fitted
+    proof = fitter.proofs_[0]
+    assert proof.proved and proof.values == "log"
+    assert "exp(p/q) > 0" in proof.summary()
+    assert meta["proof"][0]["values"] == "log" and meta["proof"][0]["p_margin"] is None
+    assert meta["proof"][0]["q_margin"] > 0
+    path = tmp_path / "fit.json"
+    save_brdf_fit(path, fitter.results_, meta)
+    assert reprove_saved(load_brdf_fit(path).saved) is True
+
+
+def test_every_evaluator_computes_exp_of_the_stored_ratio(fitted, tmp_path):
+    ds, (fitter, _seg, meta) = fitted
+    path = tmp_path / "fit.json"
+    save_brdf_fit(path, fitter.results_, meta)
+    fit = load_brdf_fit(path)
+    assert fit.values == "log"
+    rng = np.random.default_rng(5)
+    L, V = above_horizon(rng, 20_000), above_horizon(rng, 20_000)
+    vals = fit.eval_dirs(L, V)
+    coords, _ = fit.coords(L, V)
+    ratio = fit.saved.channels[0].rational(coords)
+    np.testing.assert_array_equal(vals, np.exp(ratio).reshape(vals.shape))
+    assert fit.values == "log" and fit.saved.values == "log"
+    np.testing.assert_array_equal(fit.saved(coords), vals)  # the saved fit's own values
+    # positive and finite everywhere, the near-mirror band included
+    assert np.all(np.isfinite(vals)) and vals.min() > 0
+    # brdf_fit_of (what --holdout predicts with) evaluates the same numbers
+    np.testing.assert_array_equal(brdf_fit_of(fitter.results_, meta).eval_dirs(L, V), vals)
+
+
+def test_log_segments_keep_a_zero_value_inside_and_refuse_an_empty_one():
+    x = np.linspace(0.0, 1.0, 4)[:, None]
+    seg = Segments(x, np.array([[0.0], [0.5], [1.0], [2.0]]),
+                   np.array([[1e-3], [1.0], [1.5], [3.0]]))
+    out = log_segments(seg)
+    # a value of 0 (lo = 0) keeps its upper end; its lower end is 1e-3 of it
+    np.testing.assert_allclose(np.exp(out.lo[:, 0]), [1e-6, 0.5, 1.0, 2.0], rtol=1e-15)
+    np.testing.assert_allclose(np.exp(out.hi[:, 0]), [1e-3, 1.0, 1.5, 3.0], rtol=1e-15)
+    with pytest.raises(InputError, match="upper end above 0"):
+        log_segments(Segments(x[:2], np.zeros((2, 1)), np.array([[1.0], [0.0]])))
+
+
+def test_a_fit_file_with_an_unknown_values_word_is_refused(fitted, tmp_path):
+    _, (fitter, _seg, meta) = fitted
+    path = tmp_path / "fit.json"
+    save_brdf_fit(path, fitter.results_, {**meta, "values": "sqrt"})
+    with pytest.raises(FileFormatError, match="values"):
+        load_brdf_fit(path)
+
+
+def test_values_must_be_a_known_word():
+    with pytest.raises(InputError, match="values must be one of linear, log"):
+        fit_brdf(_material(40), values="sqrt", **WIDTHS)
+
+
+# ---------------------------------------------------------------------------- CLI
+CLI_ARGS = ("--max-points", "80", "--dt", "0.3", "--floor-rel", "0.01", "--param", FRAME)
+
+
+@pytest.fixture(scope="module")
+def cli_fit(tmp_path_factory, shared_data: Path):
+    out = tmp_path_factory.mktemp("logfit") / "fit.json"
+    r = run_cli("brdf", "fit", shared_data / "cornell" / "garnet_red.brdf", *CLI_ARGS,
+                "--values", "log", "-o", out)
+    return r, out
+
+
+def test_brdf_eval_and_the_exports_agree_on_a_log_fit(cli_fit, tmp_path):
+    r, fit_path = cli_fit
+    assert r.exit_code == 0, r.output
+    assert json.loads(fit_path.read_text())["brdf"]["values"] == "log"
+    rng = np.random.default_rng(11)
+    LV = np.hstack([above_horizon(rng, 60, 0.2), above_horizon(rng, 60, 0.2)])
+    dirs = tmp_path / "dirs.csv"
+    dirs.write_text("lx,ly,lz,vx,vy,vz\n" + "\n".join(
+        ",".join(repr(float(v)) for v in row) for row in LV) + "\n")
+    ev = run_cli("brdf", "eval", fit_path, "--dirs", dirs, "-o", tmp_path / "vals.npy")
+    assert ev.exit_code == 0, ev.output
+    ref = np.load(tmp_path / "vals.npy")
+    assert ref.shape == (len(LV), 3) and np.all(np.isfinite(ref)) and ref.min() > 0
+    fit = load_brdf_fit(fit_path)
+    np.testing.assert_array_equal(ref, fit.eval_dirs(LV[:, :3], LV[:, 3:]))
+
+    py = tmp_path / "fit.py"
+    assert run_cli("export", fit_path, "--lang", "python", "-o", py).exit_code == 0
+    text = py.read_text()
+    assert "exp(p / q)" in text and "math.exp(" in text
+    ns: dict = {}
+    exec(compile(text, str(py), "exec"), ns)
+    got = np.array([ns["ratfit_brdf"](list(row[:3]), list(row[3:])) for row in LV])
+    np.testing.assert_allclose(got, ref, rtol=1e-12, atol=0)
+
+    c = tmp_path / "fit.c"
+    assert run_cli("export", fit_path, "--lang", "c", "-o", c).exit_code == 0
+    got_c = exported_brdf_in_c(c, LV[:, :3], LV[:, 3:], tmp_path)
+    np.testing.assert_allclose(got_c, ref, rtol=1e-12, atol=0)
+
+
+def test_cli_refuses_log_values_with_a_shared_denominator(shared_data, tmp_path):
+    out = tmp_path / "no.json"
+    r = run_cli("brdf", "fit", shared_data / "cornell" / "garnet_red.brdf",
+                "--values", "log", "--shared-denominator", "-o", out)
+    one_error_line(r, r"shared denominator fits the values as p_c / q")
+    assert not out.exists()
