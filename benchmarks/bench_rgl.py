@@ -12,7 +12,7 @@ and 95th percentile of |f - y| / max(y, 1e-3 1/sr). Goal (issue 28): median < 5 
 and p95 < 25 % in every channel with at most 675 numbers in all.
 
     nice -n 10 python benchmarks/bench_rgl.py [--only NAME ...] [--limit N] [--timeout 400]
-        [--pairs 100000] [--data DIR] [--baseline SRC]
+        [--pairs 100000] [--data DIR] [--baseline SRC] [--fit-args ARGS] [--baseline-args ARGS]
 
 A material whose fit runs past --timeout, or exits without a fit file, is reported
 as such (no errors). ``--known`` runs first a material known in closed form, the
@@ -24,7 +24,9 @@ with that code too, in the same run, just before this code's fit: a second row p
 channel, the ratios of this code's seconds, CPU seconds (user + system of the fit's
 process, less sensitive to other processes than the wall time) and peak memory to the
 baseline's, and whether the two fits' coefficients are identical. The load average
-before each fit is printed.
+before each fit is printed. ``--fit-args "--values log"`` adds options to this code's fit,
+``--baseline-args`` to the baseline's: with ``--baseline`` set to this checkout's own
+``src``, two options are compared on the same tables in one run.
 """
 
 from __future__ import annotations
@@ -32,6 +34,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import shlex
 import subprocess
 import sys
 import tempfile
@@ -50,7 +53,8 @@ MAX_NUMBERS = 675  # the network's own size
 _CHILD = r"""
 import json, os, resource, signal, subprocess, sys, time
 table, out, timeout = sys.argv[1], sys.argv[2], float(sys.argv[3])
-cmd = [sys.executable, "-m", "ratfit", "brdf", "fit", table, "-o", out, "--json"]
+cmd = [sys.executable, "-m", "ratfit", "brdf", "fit", table, "-o", out, "--json",
+       *json.loads(sys.argv[4])]
 t0 = time.perf_counter()
 p = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
                      start_new_session=True)
@@ -122,9 +126,10 @@ class KnownMaterial:
 
 
 def run_one(npz: Path | None, timeout: float, n_pairs: int,
-            baseline: Path | None = None) -> list[dict]:
-    """The material's fit by this code; with ``baseline`` (a src folder) first by
-    that code, on the same table."""
+            baseline: Path | None = None, fit_args: tuple[str, ...] = (),
+            baseline_args: tuple[str, ...] = ()) -> list[dict]:
+    """The material's fit by this code with ``fit_args``; with ``baseline`` (a src
+    folder) first by that code with ``baseline_args``, on the same table."""
     from ratfit.brdf.io import merl_from_function, write_merl
     from ratfit.brdf.nbrdf import load_nbrdf
 
@@ -132,18 +137,19 @@ def run_one(npz: Path | None, timeout: float, n_pairs: int,
     with tempfile.TemporaryDirectory(prefix="bench_rgl_") as tmp:
         table = Path(tmp) / f"{net.name}.binary"
         write_merl(table, merl_from_function(net))
-        srcs = ([("baseline", baseline)] if baseline is not None else []) + [
-            ("this", REPO / "src")]
+        srcs = ([("baseline", baseline, baseline_args)] if baseline is not None else []) + [
+            ("this", REPO / "src", fit_args)]
         return [fit_one(net, table, Path(tmp) / f"fit_{label}.json", timeout, n_pairs, src,
-                        label) for label, src in srcs]
+                        label, args) for label, src, args in srcs]
 
 
 def fit_one(net, table: Path, out: Path, timeout: float, n_pairs: int, src: Path,
-            label: str) -> dict:
-    """``ratfit brdf fit TABLE`` with the code in ``src``, scored against ``net``."""
+            label: str, args: tuple[str, ...] = ()) -> dict:
+    """``ratfit brdf fit TABLE ARGS`` with the code in ``src``, scored against ``net``."""
     load = os.getloadavg()[0]
     env = {**os.environ, "PYTHONPATH": str(src)}
-    res = subprocess.run([sys.executable, "-c", _CHILD, str(table), str(out), str(timeout)],
+    res = subprocess.run([sys.executable, "-c", _CHILD, str(table), str(out), str(timeout),
+                          json.dumps(list(args))],
                          capture_output=True, text=True, env=env, check=True)
     child = json.loads(res.stdout)
     row = {"name": net.name, "rc": child["rc"], "seconds": child["seconds"],
@@ -202,8 +208,15 @@ def main() -> None:
     ap.add_argument("--baseline", type=Path, metavar="SRC",
                     help="also fit each table with the code in SRC (another checkout's "
                          "src folder), just before this code; ratios this / baseline")
+    ap.add_argument("--fit-args", default="", metavar="ARGS",
+                    help="options added to this code's `ratfit brdf fit` (one string, "
+                         "e.g. \"--values log\"); the table's title names them")
+    ap.add_argument("--baseline-args", default="", metavar="ARGS",
+                    help="options added to the baseline's fit (with --baseline; the same "
+                         "src and other ARGS compare two options on the same tables)")
     add_markdown_option(ap)
     args = ap.parse_args()
+    fit_args, base_args = tuple(shlex.split(args.fit_args)), tuple(shlex.split(args.baseline_args))
     if args.baseline is not None and not (args.baseline / "ratfit").is_dir():
         sys.exit(f"error: --baseline {args.baseline}: no ratfit package in it")
 
@@ -228,7 +241,7 @@ def main() -> None:
     ratios = []
     met = 0
     for npz in runs:
-        fits = run_one(npz, args.timeout, args.pairs, args.baseline)
+        fits = run_one(npz, args.timeout, args.pairs, args.baseline, fit_args, base_args)
         for r in fits:
             ok_fit = r["rc"] == 0 and "errors" in r
             status = ("yes" if ok_fit else f"timeout {args.timeout:.0f} s" if r["rc"] is None
@@ -265,7 +278,12 @@ def main() -> None:
     if ratios:
         note += (f" Baseline: the code in {args.baseline}, run just before this code on the "
                  "same table. " + " ".join(ratios))
-    rep.table(f"default `ratfit brdf fit TABLE -o fit.json` on full MERL tables; timeout "
+    what = " ".join(["`ratfit brdf fit TABLE -o fit.json", *fit_args]) + "`"
+    if compare:
+        what += " (baseline: " + " ".join(["`ratfit brdf fit TABLE -o fit.json",
+                                           *base_args]) + "`)"
+    rep.table(f"{what if fit_args or base_args else 'default ' + what} on full MERL "
+              f"tables; timeout "
               f"{args.timeout:.0f} s; {args.pairs} seeded pairs, L and V uniform on the "
               f"hemisphere (all) or on the cap cos >= 0.1 (c>.1); rel = |f - y| / max(y, "
               f"{FLOOR:g}); s: wall seconds of the fit's process, cpu s: its user + system "
