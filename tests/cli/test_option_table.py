@@ -173,6 +173,7 @@ BRDF_ROWS = [
     ("positive_q", ["--positive-q"], True),
     ("polish", ["--no-polish"], False),
     ("polish_error", ["--polish-error", "absolute"], "absolute"),
+    ("values", ["--values", "log"], "log"),
 ]
 
 
