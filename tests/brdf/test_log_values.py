@@ -26,6 +26,7 @@ from ratfit.brdf.validity import reprove_saved
 from ratfit.core.segments import Segments
 from ratfit.errors import FileFormatError, InputError
 from ratfit.io.data import Dataset
+from ratfit.render.material import FitMaterial
 
 FRAME = "RUSIN_TH_TD_SYM"
 # a glossy lobe over a diffuse part 1e-2..1e-3 of the peak (a glossy paint's range)
@@ -145,6 +146,10 @@ def test_brdf_eval_and_the_exports_agree_on_a_log_fit(cli_fit, tmp_path):
     assert ref.shape == (len(LV), 3) and np.all(np.isfinite(ref)) and ref.min() > 0
     fit = load_brdf_fit(fit_path)
     np.testing.assert_array_equal(ref, fit.eval_dirs(LV[:, :3], LV[:, 3:]))
+    # what the renderer and the Mitsuba plugin evaluate (the plugin calls this material)
+    mat = FitMaterial(fit_path)
+    np.testing.assert_array_equal(mat(LV[:, :3], LV[:, 3:]), ref)
+    assert mat.negative_fraction == 0.0
 
     py = tmp_path / "fit.py"
     assert run_cli("export", fit_path, "--lang", "python", "-o", py).exit_code == 0
