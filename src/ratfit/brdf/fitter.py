@@ -1343,8 +1343,7 @@ class BRDFFitter(RationalFitter):
         if rf.space.dim == 1 and ver.poles_in_domain:
             return ver
         keep = self.used_coords
-        chk = check_validity(rf, self.parametrization, keep=keep,
-                             numerator=self.values == "linear")
+        chk = check_validity(rf, self.parametrization, keep=keep, values=self.values)
         if chk is None:  # nothing says what is valid: the plain box check decides
             return ver if box_checked else verify(rf, seg, channel=j)
         if chk.valid:

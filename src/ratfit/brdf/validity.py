@@ -178,9 +178,9 @@ class ValidityCheck:
 def check_validity(rf: RationalFunction, param: str, domain: ArrayLike | None = None,
                    points: int = 150_000, starts: int = 24,
                    keep: ArrayLike | None = None,
-                   numerator: bool = True) -> ValidityCheck | None:
+                   values: str = "linear") -> ValidityCheck | None:
     """Dense, adaptive check that q > 0 and p >= 0 on valid configurations in ``domain``
-    (q > 0 alone without ``numerator``: a fit of log values, exp(p / q) > 0 wherever q is).
+    (q > 0 alone for ``values="log"``: the fit is exp(p / q), > 0 wherever q > 0).
 
     A grid of direction pairs offset from :func:`configurations`' (so the
     constraint grid proves nothing here), then a compass search in angle space
@@ -199,7 +199,8 @@ def check_validity(rf: RationalFunction, param: str, domain: ArrayLike | None = 
         return ValidityCheck(True, 0, np.inf, np.inf, np.zeros((0, dom.shape[0])),
                              "no direction pair in the domain")
     q = rf.denominator(c)
-    # without the numerator's condition p counts as positive wherever q is
+    numerator = values != "log"  # a fit of log values has no condition on p
+    # without it p counts as positive wherever q is
     pv = rf.numerator(c) if numerator else np.abs(q)
     sign = 1.0 if np.sum(q > 0) >= np.sum(q < 0) else -1.0
     q, pv = sign * q, sign * pv
