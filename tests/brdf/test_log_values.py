@@ -127,7 +127,7 @@ CLI_ARGS = ("--max-points", "80", "--dt", "0.3", "--floor-rel", "0.01", "--param
 def cli_fit(tmp_path_factory, shared_data: Path):
     out = tmp_path_factory.mktemp("logfit") / "fit.json"
     r = run_cli("brdf", "fit", shared_data / "cornell" / "garnet_red.brdf", *CLI_ARGS,
-                "--values", "log", "-o", out)
+                "--values", "log", "--json", "-o", out)
     return r, out
 
 
@@ -135,6 +135,8 @@ def test_brdf_eval_and_the_exports_agree_on_a_log_fit(cli_fit, tmp_path):
     r, fit_path = cli_fit
     assert r.exit_code == 0, r.output
     assert json.loads(fit_path.read_text())["brdf"]["values"] == "log"
+    summary = json.loads(r.stdout)
+    assert summary["values"] == "log" and summary["success"] is True
     rng = np.random.default_rng(11)
     LV = np.hstack([above_horizon(rng, 60, 0.2), above_horizon(rng, 60, 0.2)])
     dirs = tmp_path / "dirs.csv"

@@ -229,6 +229,8 @@ class BRDFFitReport:
         if self.holdout is not None:
             doc["holdout"] = self.holdout.to_dict()
         doc["shared_denominator"] = bool(self.meta.get("shared_denominator"))
+        # "log": each channel's value is exp(p / q) of the n and m above
+        doc["values"] = str(self.meta.get("values", "linear"))
         if self.meta.get("shared"):
             doc["shared"] = dict(self.meta["shared"])
         return doc
