@@ -30,7 +30,6 @@ from ratfit.brdf.options import (
     BRDF_SOLVER,
     NOISE_FLOOR,
     UNKNOWN_PARAMETRIZATION,
-    VALUES,
     BRDFOptions,
 )
 from ratfit.brdf.parametrizations import (
@@ -41,7 +40,7 @@ from ratfit.brdf.parametrizations import (
 from ratfit.core.bases import PolynomialSpace
 from ratfit.core.options import DEFAULT_MAX_TOTAL, DEFAULT_TIME_LIMIT
 from ratfit.core.qp import ArnoldiSystem
-from ratfit.core.rational import RationalFunction
+from ratfit.core.rational import RationalFunction, ratio_values
 from ratfit.core.results import FitResult
 from ratfit.core.segments import Segments
 from ratfit.core.systems import AppendedRows, LazyRows, RowSystem, spread_indices
@@ -407,7 +406,8 @@ def fit_brdf(ds: Dataset, *, dt: float | None = None, abs_width: AbsWidth = None
     ``shared_denominator``: one q for every channel
     (:class:`ratfit.brdf.shared.SharedBRDFFitter`; ``max_total`` then bounds each
     numerator; no channel is widened alone). ``values="log"``: fit log values, so the fit
-    is exp(p / q) (:data:`VALUES`). ``brdf_meta`` is the ``"brdf"`` block of the fit file.
+    is exp(p / q) (:data:`~ratfit.brdf.options.VALUES`). ``brdf_meta`` is the ``"brdf"``
+    block of the fit file.
     """
     from ratfit.brdf.consistency import consistent_segments, sample_neighbours
     from ratfit.core.columns import constant_axes
@@ -449,10 +449,8 @@ def fit_brdf(ds: Dataset, *, dt: float | None = None, abs_width: AbsWidth = None
     around = sample_neighbours(seg.x) if consistent else None
     if around is not None:
         seg, merged = consistent_segments(seg, neighbours=around)
-    if values not in VALUES:
-        raise InputError(f"values must be one of {', '.join(VALUES)}, got {values!r}")
-    if values == "log":
-        fitter_params = {**fitter_params, "values": values}
+    # (the fitter's options check the word; a shared denominator refuses "log")
+    fitter_params = {**fitter_params, "values": values}
     if fitter_params.get("polish_error", "auto") == "auto":
         # relative errors mean something where small values have a noise-level floor
         fitter_params = {**fitter_params,
@@ -865,9 +863,8 @@ def log_segments(seg: Segments) -> Segments:
             f"a fit of log values needs every segment's upper end above 0 (row {i}, "
             f"channel {seg.names[j]}: hi = {float(seg.hi[i, j])!r}); give the segments "
             "a floor (--abs-width)")
-    lo = np.maximum(seg.lo, LOG_LOW * seg.hi)
-    with np.errstate(divide="ignore"):
-        center = None if seg.y is None else np.log(np.clip(seg.y, lo, seg.hi))
+    lo = np.maximum(seg.lo, LOG_LOW * seg.hi)  # > 0: hi > 0
+    center = None if seg.y is None else np.log(np.clip(seg.y, lo, seg.hi))
     return Segments(seg.x, np.log(lo), np.log(seg.hi), center, seg.names)
 
 
@@ -982,8 +979,6 @@ class BRDFFitter(RationalFitter):
 
     def _fit_segments(self, segments: Segments) -> Self:
         """Search every channel, then polish and prove (``fit`` ends here)."""
-        if self.values not in VALUES:
-            raise InputError(f"values must be one of {', '.join(VALUES)}, got {self.values!r}")
         if self.values == "log" and not self._full_search:
             # the search, the polish and the proof work on log values; the value
             # segments stay for the last check of exp(p / q) itself
@@ -1035,7 +1030,7 @@ class BRDFFitter(RationalFitter):
         leaves exp's rounding), with the errors the result reports those of the values."""
         rf, old = res.rational, res.verification
         assert rf is not None and old is not None
-        ver = verify(rf, self._value_segments, channel=j, box_check=False, exp_values=True)
+        ver = verify(rf, self._value_segments, channel=j, box_check=False, values="log")
         if ver.n_violations == 0 and np.isfinite(ver.linf):
             return replace(res, verification=replace(
                 ver, verified=True, poles_in_domain=old.poles_in_domain,
@@ -1049,11 +1044,7 @@ class BRDFFitter(RationalFitter):
 
     def predict(self, X: ArrayLike) -> Array:
         """As :meth:`RationalFitter.predict`; for a fit of log values, exp(p / q)."""
-        out = super().predict(X)
-        if self.values == "log":
-            with np.errstate(over="ignore"):
-                return np.exp(out)
-        return out
+        return ratio_values(super().predict(X), self.values)
 
     def _search_with_full_proof(self, res: FitResult, seg: Segments, j: int) -> FitResult:
         """Channel ``j`` searched again with the full proof on every candidate, when the

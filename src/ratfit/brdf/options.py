@@ -15,6 +15,7 @@ from ratfit.core.options import (
     check_options_class,
     extend_spec,
 )
+from ratfit.core.rational import VALUE_FORMS
 from ratfit.core.solvers import first_available
 from ratfit.errors import InputError
 
@@ -40,7 +41,7 @@ POLISH_ERRORS = ("auto", "absolute", "relative")
 #: What a BRDF fit's p / q approximates: the values ("linear": the fit is p / q, proved
 #: q > 0 and p >= 0) or their logarithms ("log": the fit is exp(p / q), proved q > 0;
 #: positive by construction, and a relative segment width is one log width at every value).
-VALUES = ("linear", "log")
+VALUES = VALUE_FORMS
 #: The parametrization of coordinates no registry entry describes: the plain pole check.
 UNKNOWN_PARAMETRIZATION = "UNKNOWN"
 

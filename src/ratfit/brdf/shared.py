@@ -263,7 +263,7 @@ class SharedBRDFFitter:
                              "rows and proof: physical=False is not available")
         if params.get("values", "linear") != "linear":
             raise InputError("a shared denominator fits the values as p_c / q: "
-                             "drop values=\"log\"")
+                             f"drop values={params['values']!r}")
         for key in ("n", "total"):
             if params.get(key) is not None:
                 raise InputError(f"a shared denominator searches the numerator sizes itself: "

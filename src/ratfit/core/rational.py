@@ -24,9 +24,24 @@ from ratfit.core.bases import PolynomialSpace
 if TYPE_CHECKING:
     from ratfit.core.arnoldi import ArnoldiBasis
 
-__all__ = ["RationalFunction"]
+__all__ = ["VALUE_FORMS", "RationalFunction", "ratio_values"]
 
 Array = NDArray[np.float64]
+
+#: What a fit's p / q gives: the values themselves ("linear") or their logarithms
+#: ("log": the value is exp(p / q), positive by construction).
+VALUE_FORMS = ("linear", "log")
+
+
+def ratio_values(ratio: ArrayLike, values: str = "linear") -> Array:
+    """A fit's values from its p / q (:data:`VALUE_FORMS`): the ratio itself, or exp of it
+    for a fit of log values; non-finite stays non-finite. The one definition every
+    evaluator and every check of a fit's values uses."""
+    r = np.asarray(ratio, dtype=np.float64)
+    if values == "log":
+        with np.errstate(over="ignore"):
+            return np.exp(r)
+    return r
 
 
 def _single_point(x: ArrayLike, dim: int) -> Array | None:

@@ -12,7 +12,7 @@ from dataclasses import asdict, dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from ratfit.core.rational import RationalFunction
+from ratfit.core.rational import RationalFunction, ratio_values
 from ratfit.core.segments import Segments
 from ratfit.core.systems import domain_grid
 
@@ -90,15 +90,15 @@ class Verification:
 
 
 def verify(rf: RationalFunction, seg: Segments, *, channel: int = 0,
-           box_check: bool = True, exp_values: bool = False) -> Verification:
+           box_check: bool = True, values: str = "linear") -> Verification:
     """Evaluate ``rf`` at every point of ``seg`` (one channel) and check poles.
 
     Non-finite values count as violations (q = 0 at a data point is a miss).
     ``box_check=False`` (n-D only) leaves out q's sign on a grid of the domain
     box, for callers that check a region of their own instead (BRDFs: the
     direction pairs above the horizon); q's sign at the data is still checked.
-    ``exp_values``: the fit's value is exp(p / q) (a fit of log values), checked against
-    segments of the values themselves.
+    ``values="log"``: the fit's value is exp(p / q) (a fit of log values,
+    :func:`~ratfit.core.rational.ratio_values`), checked against segments of the values.
 
     Parameters
     ----------
@@ -124,8 +124,8 @@ def verify(rf: RationalFunction, seg: Segments, *, channel: int = 0,
     y = seg.center[:, channel]
     q = rf.denominator(seg.x)
     p = rf.numerator(seg.x)
-    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
-        r = np.exp(p / q) if exp_values else p / q
+    with np.errstate(divide="ignore", invalid="ignore"):
+        r = ratio_values(p / q, values)
     finite = np.isfinite(r)
     below = np.where(finite, lo - r, np.inf)
     above = np.where(finite, r - hi, np.inf)

@@ -29,7 +29,7 @@ from numpy.typing import ArrayLike, NDArray
 from ratfit._atomic import atomic_open
 from ratfit.core.bases import PolynomialSpace
 from ratfit.core.columns import MAX_DEGREE_CAP
-from ratfit.core.rational import RationalFunction
+from ratfit.core.rational import VALUE_FORMS, RationalFunction, ratio_values
 from ratfit.core.results import FitResult
 from ratfit.core.segments import MAX_DIM, MAX_MAGNITUDE, SPAN_RTOL
 from ratfit.errors import FileFormatError, InputError
@@ -81,11 +81,7 @@ class SavedFit:
     def channel_values(self, j: int, x: ArrayLike) -> NDArray[np.float64]:
         """Channel ``j``'s values at points x: p / q, or exp(p / q) for log values (the
         one place a saved fit's value is defined; every evaluator comes here)."""
-        r = np.asarray(self.channels[j].rational(x), dtype=np.float64)
-        if self.values == "log":
-            with np.errstate(over="ignore"):
-                return np.exp(r)
-        return r
+        return ratio_values(self.channels[j].rational(x), self.values)
 
     def __call__(self, x: ArrayLike) -> NDArray[np.float64]:
         """Values (N, k) of every channel at points x."""
@@ -674,7 +670,7 @@ _BRDF_FIELDS: dict[str, tuple[Any, str]] = {
     "proof": (_list_of(_opt(lambda v: isinstance(v, dict) and _is_bool(v.get("proved")))),
               "a list of nulls or objects with a true/false 'proved'"),
     "shared_denominator": (_is_bool, "true or false"),
-    "values": (lambda v: v in ("linear", "log"), "\"linear\" or \"log\""),
+    "values": (lambda v: v in VALUE_FORMS, " or ".join(f'"{v}"' for v in VALUE_FORMS)),
     "shared": (_opt(lambda v: isinstance(v, dict) and _is_int(v.get("m"))
                     and _is_int(v.get("coefficients"))),
                "null or an object with integers 'm' and 'coefficients'"),

@@ -11,6 +11,7 @@ from typing import Any
 import numpy as np
 
 from ratfit.brdf.options import UNKNOWN_PARAMETRIZATION, BRDFOptions
+from ratfit.core.rational import ratio_values
 from ratfit.core.results import FitResult
 from ratfit.core.segments import Segments
 from ratfit.core.validation import check_choice
@@ -344,9 +345,7 @@ def _metrics(report: BRDFFitReport) -> dict[str, dict[str, float]]:
     seg = report.segments
     pred = np.stack([r.rational(seg.x) for r in report.results  # type: ignore[misc]
                      ], axis=1)
-    if report.meta.get("values") == "log":  # the fit is exp(p / q)
-        with np.errstate(over="ignore"):
-            pred = np.exp(pred)
+    pred = ratio_values(pred, str(report.meta.get("values", "linear")))
     cl = None
     if report.parametrization != UNKNOWN_PARAMETRIZATION:
         try:
