@@ -17,9 +17,10 @@ so :func:`load_brdf_fit` gives back a function of directions.
 
 from __future__ import annotations
 
+import contextlib
 import os
 import time
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
 from dataclasses import dataclass, replace
 from typing import TYPE_CHECKING, Any, Self
 
@@ -44,7 +45,6 @@ from ratfit.core.rational import RationalFunction, ratio_values
 from ratfit.core.results import FitResult
 from ratfit.core.segments import Segments
 from ratfit.core.systems import AppendedRows, LazyRows, RowSystem, spread_indices
-from ratfit.core.threads import one_blas_thread
 from ratfit.core.validation import check_width
 from ratfit.core.verify import Verification, verify
 from ratfit.core.work import WorkBudget
@@ -978,7 +978,7 @@ class BRDFFitter(RationalFitter):
         self.used_coords = used_coords
 
     def _fit_segments(self, segments: Segments) -> Self:
-        """Search every channel, then polish and prove (``fit`` ends here)."""
+        """Search every channel, then polish and prove it (``fit`` ends here)."""
         if self.values == "log" and not self._full_search:
             # the search, the polish and the proof work on log values; the value
             # segments stay for the last check of exp(p / q) itself
@@ -988,28 +988,8 @@ class BRDFFitter(RationalFitter):
             self._points: dict[int, list[Array]] = {}
         self._checks: dict[int, Any] = {}
         self._polish_budgets: dict[int, WorkBudget] = {}
+        self._final_channels: set[int] = set()
         super()._fit_segments(segments)
-        searched = list(self.results_)
-        prove = self.physical and find_parametrization(self.parametrization) is not None
-        if self.polish:
-            # small matrices: BLAS worker threads only spin (see ratfit.core.threads);
-            # the polish is checked with the full proof, as the chosen fit will be
-            self._final_proof = prove
-            try:
-                with one_blas_thread():
-                    self.results_ = [self._polished(r, segments, j) if r.success else r
-                                     for j, r in enumerate(self.results_)]
-            finally:
-                self._final_proof = False
-        if prove:
-            self.results_ = [self._proved_or_searched(r, s, segments, j)
-                             for j, (r, s) in enumerate(zip(self.results_, searched,
-                                                            strict=True))]
-            if not self._full_search:
-                self.results_ = [r if r.success or s.rational is None or not s.success
-                                 else self._search_with_full_proof(r, segments, j)
-                                 for j, (r, s) in enumerate(zip(self.results_, searched,
-                                                                strict=True))]
         # what the dense validity check and the proof said about each channel's chosen fit
         self.validity_ = [
             self._checks.get(id(r.rational)) if r.rational is not None else None
@@ -1020,9 +1000,42 @@ class BRDFFitter(RationalFitter):
                         for r in self.results_]
         if self.values == "log" and not self._full_search:
             self.segments_ = self._value_segments
-            self.results_ = [self._values_checked(r, j) if r.success else r
-                             for j, r in enumerate(self.results_)]
         return self
+
+    def _finish_channel(self, res: FitResult, seg: Segments, j: int) -> FitResult:
+        """Channel ``j``'s searched fit polished, proved and (log values) checked as
+        values, in the channel's thread: its polish runs while other channels search.
+        Nothing here reads another channel's state, so the answer is the same with
+        channels side by side or in turn."""
+        searched = res
+        prove = self.physical and find_parametrization(self.parametrization) is not None
+        if self.polish and res.success:
+            # small matrices: one BLAS thread (the search's ``one_blas_thread`` holds);
+            # the polish is checked with the full proof, as the chosen fit will be
+            with self._full_proof(j, prove):
+                res = self._polished(res, seg, j)
+        if prove:
+            res = self._proved_or_searched(res, searched, seg, j)
+            if (not self._full_search and not res.success and searched.rational is not None
+                    and searched.success):
+                res = self._search_with_full_proof(res, seg, j)
+        if self.values == "log" and not self._full_search and res.success:
+            res = self._values_checked(res, j)
+        return res
+
+    @contextlib.contextmanager
+    def _full_proof(self, j: int, on: bool = True) -> Iterator[None]:
+        """Channel ``j``'s candidates get the full validity proof inside the block
+        (the polish and the final check); the other channels' searches keep theirs."""
+        if not on:
+            yield
+            return
+        channels = self.__dict__.setdefault("_final_channels", set())
+        channels.add(j)
+        try:
+            yield
+        finally:
+            channels.discard(j)
 
     def _values_checked(self, res: FitResult, j: int) -> FitResult:
         """A verified fit of log values checked as its values: exp(p / q), as every
@@ -1106,8 +1119,7 @@ class BRDFFitter(RationalFitter):
 
         rf = res.rational
         assert rf is not None
-        self._final_proof = True
-        try:
+        with self._full_proof(j):
             for attempt in range(2):
                 fam = rf.to_family()
                 ver = verify(fam, seg, channel=j, box_check=False)
@@ -1128,8 +1140,6 @@ class BRDFFitter(RationalFitter):
                 if out is None:
                     break
                 rf = out[0]
-        finally:
-            self._final_proof = False
         why = ("misses a segment in its stored form" if ver.n_violations
                or not np.isfinite(ver.linf) else f"validity {proof.summary()}")
         return replace(res, success=False, status=2, rational=fam,
@@ -1342,7 +1352,7 @@ class BRDFFitter(RationalFitter):
             # While the search runs, a short proof that finds q <= 0 or p < 0 rejects the
             # candidate and one that runs out of pieces lets it on; the chosen fit gets
             # the full proof (:meth:`_proved`), which alone makes it a success.
-            final = self._final_proof
+            final = self._final_proof or j in self.__dict__.get("_final_channels", ())
             proof = prove_validity(rf, self.parametrization, keep=keep, values=self.values,
                                    max_boxes=40_000 if final else SEARCH_PROOF_BOXES)
             self.__dict__.setdefault("_proofs", {})[id(rf)] = proof

@@ -55,7 +55,7 @@ import os
 import threading
 import time
 from collections.abc import Callable, Iterable
-from concurrent.futures import ThreadPoolExecutor
+from concurrent.futures import FIRST_COMPLETED, Future, ThreadPoolExecutor, wait
 from dataclasses import dataclass
 from typing import ClassVar, Protocol, Self
 
@@ -385,20 +385,42 @@ class RationalFitter(Regressor):
         return min(jobs, seg.n_channels)
 
     def _fit_side_by_side(self, space: PolynomialSpace, log_space: PolynomialSpace | None,
-                          seg: Segments, threads: int) -> list[FitResult]:
-        """Every channel's fit, ``threads`` channels at a time. Each channel starts
-        its search at ``min_total`` (no hint from another channel) and keeps what it
-        learns to itself (a BRDF fit's validity points are kept per channel): its
-        answer does not depend on timing. Ctrl-C stops every channel at its next
-        split."""
+                          seg: Segments, threads: int,
+                          finished: Callable[[int, FitResult], FitResult]) -> list[FitResult]:
+        """Every channel's fit, ``threads`` tasks at a time: each channel's search, then
+        ``finished(j, result)`` (a BRDF channel's polish and proof). A search that ends
+        frees its thread for the next channel's search first; the finished searches'
+        follow-ups take the threads the searches leave (the last channel's search does
+        not wait for the first channels' polish). Each channel starts its search at
+        ``min_total`` (no hint from another channel) and keeps what it learns to itself
+        (a BRDF fit's validity points are kept per channel): its answer does not
+        depend on timing. Ctrl-C stops every channel at its next split."""
         self._cancel = threading.Event()
-
-        def one(j: int) -> FitResult:
-            return self._fit_either(space, log_space, seg, j, alone=threads > 1)
-
+        alone = threads > 1
+        waiting = list(range(seg.n_channels))  # channels whose search has not started
+        results: dict[int, FitResult] = {}
         ex = ThreadPoolExecutor(threads)
+        tasks: dict[Future[FitResult], tuple[str, int]] = {}
+
+        def start_search() -> None:
+            j = waiting.pop(0)
+            tasks[ex.submit(self._fit_either, space, log_space, seg, j, alone=alone)] = (
+                "search", j)
+
         try:
-            results = list(ex.map(one, range(seg.n_channels)))
+            for _ in range(min(threads, len(waiting))):
+                start_search()
+            while tasks:
+                done, _ = wait(tasks, return_when=FIRST_COMPLETED)
+                for fut in sorted(done, key=lambda f: tasks[f][1]):  # in channel order
+                    kind, j = tasks.pop(fut)
+                    res = fut.result()
+                    if kind == "finish":
+                        results[j] = res
+                        continue
+                    if waiting:  # queued before the follow-up: it runs first
+                        start_search()
+                    tasks[ex.submit(finished, j, res)] = ("finish", j)
         except BaseException:
             # the threads still running see it at their next split (and keep their
             # thread-local state until then); the fitter is not reused after this
@@ -407,7 +429,7 @@ class RationalFitter(Regressor):
         finally:
             ex.shutdown(wait=False, cancel_futures=True)
         del self._cancel  # not picklable; a later fit starts afresh
-        return results
+        return [results[j] for j in range(seg.n_channels)]
 
     # -- collaborators of the search engine (subclasses: monotone CDFs, BRDFs) ---------
     def search_parts(self, space: PolynomialSpace, seg: Segments) -> SearchParts:
@@ -448,19 +470,28 @@ class RationalFitter(Regressor):
         log_space = self._log_space(space, segments)
         self.__dict__.pop("_cancel", None)  # left by an interrupted side-by-side fit
         threads = self._channel_threads(work)
+        verifier = self.search_parts(space, segments).verifier
+
+        def finished(j: int, res: FitResult) -> FitResult:
+            res = unscale_result(res, segments, j, float(factors[j]), verifier)
+            return self._finish_channel(res, segments, j)
+
         with one_blas_thread():  # the search's own threads; BLAS pools only spin
             if segments.n_channels > 1:
                 # Every channel with its own state, in threads or one after another:
                 # its answer depends neither on --jobs nor on the other channels.
-                results = self._fit_side_by_side(space, log_space, work, threads)
+                results = self._fit_side_by_side(space, log_space, work, threads,
+                                                 finished)
             else:
-                results = [self._fit_either(space, log_space, work, 0)]
-        verifier = self.search_parts(space, segments).verifier
-        self.results_ = [
-            unscale_result(r, segments, j, float(f), verifier)
-            for j, (r, f) in enumerate(zip(results, factors, strict=True))
-        ]
+                results = [finished(0, self._fit_either(space, log_space, work, 0))]
+        self.results_ = results
         return self
+
+    def _finish_channel(self, res: FitResult, seg: Segments, j: int) -> FitResult:
+        """What follows channel ``j``'s search (``seg``: the data's own segments), in
+        the channel's thread while other channels still search: nothing here;
+        subclasses polish and prove."""
+        return res
 
     def predict(self, X: ArrayLike) -> Array:
         """Values of the fit at points ``X`` (N, d) or (N,) in 1-D: shape (N,) for
