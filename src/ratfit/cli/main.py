@@ -123,6 +123,9 @@ class _Main(LazyGroup):
              **extra: Any) -> Any:
         if not standalone_mode:
             return super().main(args, prog_name, complete_var, standalone_mode, **extra)
+        from ratfit.core.memory import prefer_small_pages
+
+        prefer_small_pages()  # the process is the command's (see ratfit.core.memory)
         try:
             rv = super().main(args, prog_name, complete_var, False, **extra)
         except click.UsageError as exc:
