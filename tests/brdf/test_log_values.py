@@ -115,7 +115,7 @@ def test_a_fit_file_with_an_unknown_values_word_is_refused(fitted, tmp_path):
 
 
 def test_values_must_be_a_known_word():
-    with pytest.raises(InputError, match="unknown values 'sqrt'; choose one of linear, log"):
+    with pytest.raises(InputError, match="unknown values 'sqrt'; choose one of auto, linear, log"):
         fit_brdf(_material(40), values="sqrt", **WIDTHS)
 
 

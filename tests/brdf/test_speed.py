@@ -91,9 +91,9 @@ def test_channels_side_by_side_give_each_channel_its_own_answer(shared_data: Pat
     seen: list[int] = []
     real = search.RationalFitter._fit_side_by_side
 
-    def spy(self, space, log_space, seg, threads):
+    def spy(self, space, log_space, seg, threads, finished):
         seen.append(threads)
-        return real(self, space, log_space, seg, threads)
+        return real(self, space, log_space, seg, threads, finished)
 
     monkeypatch.setattr(search.RationalFitter, "_fit_side_by_side", spy)
     monkeypatch.setattr(search, "CHANNEL_THREADS_POINTS", 500)
@@ -108,6 +108,9 @@ def test_channels_side_by_side_give_each_channel_its_own_answer(shared_data: Pat
                                   dt=0.22, jobs=1)
         a, b = alone.results_[0], both.results_[j]
         assert (b.n, b.m) == (a.n, a.m), name
+        # polished and proved in its thread beside the other searches: the same numbers
+        assert np.array_equal(b.rational.p, a.rational.p), name
+        assert np.array_equal(b.rational.q, a.rational.q), name
         r = b.rational(seg.x)
         assert np.all((seg.lo[:, j] <= r) & (r <= seg.hi[:, j]))
         assert meta["validity"][j].startswith("proved: ")

@@ -41,7 +41,9 @@ POLISH_ERRORS = ("auto", "absolute", "relative")
 #: What a BRDF fit's p / q approximates: the values ("linear": the fit is p / q, proved
 #: q > 0 and p >= 0) or their logarithms ("log": the fit is exp(p / q), proved q > 0;
 #: positive by construction, and a relative segment width is one log width at every value).
-VALUES = VALUE_FORMS
+#: "auto": log values for a full table of every cell (MERL) in the half-vector frame,
+#: else linear (:func:`ratfit.brdf.fitter.resolve_values`).
+VALUES = ("auto", *VALUE_FORMS)
 #: The parametrization of coordinates no registry entry describes: the plain pole check.
 UNKNOWN_PARAMETRIZATION = "UNKNOWN"
 
@@ -84,9 +86,10 @@ BRDF_OPTIONS = extend_spec(
            "Error the polish minimises: relative (to |y| + 1e-3), absolute, or auto "
            "(relative when the segments have an absolute floor).",
            POLISH_ERRORS, cli=False),
-    Option("values", "choice", "linear",
+    Option("values", "choice", "auto",
            "What p / q fits: the values (linear) or their logarithms (log: the fit is "
-           "exp(p / q), positive by construction).", VALUES, cli=False),
+           "exp(p / q), positive by construction); auto: log for a full MERL table in "
+           "the half-vector frame, else linear.", VALUES, cli=False),
     Option("used_coords", "indices", None,
            "Coordinates of the parametrization the data holds (None: all).",
            validator=_check_coords, cli=False),
@@ -107,7 +110,7 @@ class BRDFOptions(FitOptions):
     physical: bool = True
     polish: bool = True
     polish_error: str = "auto"
-    values: str = "linear"
+    values: str = "auto"
     used_coords: tuple[int, ...] | None = None
 
 

@@ -261,7 +261,7 @@ class SharedBRDFFitter:
         if params.get("physical", True) is False:
             raise InputError("a shared denominator is fitted with the physical validity "
                              "rows and proof: physical=False is not available")
-        if params.get("values", "linear") != "linear":
+        if params.get("values", "auto") not in ("auto", "linear"):
             raise InputError("a shared denominator fits the values as p_c / q: "
                              f"drop values={params['values']!r}")
         for key in ("n", "total"):

@@ -307,7 +307,8 @@ def fit_brdf_file(request: BRDFFitRequest | str | Path) -> BRDFFitReport:
         o = req.options
         # No frame and no fixed size given: the half-vector frame first, then the angles.
         names = (first,) if req.parametrization or o.n is not None or o.total is not None \
-            else candidate_parametrizations(first, cosine=req.cosine)
+            else candidate_parametrizations(first, cosine=req.cosine,
+                                            table=own_ds.meta.get("format") == "merl")
         datasets = [own_ds if name == own else frame(name) for name in names]
     with clock.phase("fit"):
         kw = {k: v for k, v in o.params().items() if k not in ("parametrization", "used_coords")}

@@ -1,0 +1,101 @@
+"""A full MERL table's default fit: the half-vector frame first, with log values there.
+
+resolve_values decides "auto" from the dataset; the command tries RUSIN_TH_TD_SYM
+before the table's own RUSIN_TH_TD_PD. The table here is a closed-form material
+(Lambert + a Blinn-like lobe with a colour of its own) written at MERL's resolution.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+from conftest import run_cli
+
+from ratfit.brdf.fitter import (
+    HALF_VECTOR,
+    candidate_parametrizations,
+    fit_brdf,
+    resolve_values,
+)
+from ratfit.brdf.io import merl_from_function, read_brdf, samples_dataset, write_merl
+from ratfit.errors import InputError
+
+PD = "RUSIN_TH_TD_PD"
+KD = np.array([0.12, 0.05, 0.02])
+KS = np.array([2.0, 1.6, 1.2])
+
+
+def material(L: np.ndarray, V: np.ndarray) -> np.ndarray:
+    """Lambert + a lobe around the mirror direction (N, 3), 1/sr."""
+    h = L + V
+    h /= np.linalg.norm(h, axis=1, keepdims=True)
+    lobe = np.clip(h[:, 2], 0.0, 1.0) ** 40
+    return KD / np.pi + KS * lobe[:, None]
+
+
+@pytest.fixture(scope="module")
+def table(tmp_path_factory) -> Path:
+    path = tmp_path_factory.mktemp("merl") / "closed-form.binary"
+    write_merl(path, merl_from_function(material))
+    return path
+
+
+def test_auto_values_are_log_for_a_table_in_the_half_vector_frame(table: Path) -> None:
+    data = read_brdf(table)
+    sym = samples_dataset(data, HALF_VECTOR, max_points=200)
+    pd = samples_dataset(data, PD, max_points=200)
+    assert resolve_values("auto", sym, HALF_VECTOR) == "log"
+    assert resolve_values("auto", pd, PD) == "linear"  # no smaller there (measured)
+    assert resolve_values("auto", sym, HALF_VECTOR, shared_denominator=True) == "linear"
+    assert resolve_values("linear", sym, HALF_VECTOR) == "linear"  # a word given is kept
+    # not a table: scattered measurements stay linear
+    scattered = samples_dataset(data, HALF_VECTOR, max_points=200)
+    scattered = type(scattered)(**{**scattered.__dict__,
+                                   "meta": {**scattered.meta, "format": "cornell"}})
+    assert resolve_values("auto", scattered, HALF_VECTOR) == "linear"
+
+
+def test_a_table_is_tried_in_the_half_vector_frame_first() -> None:
+    assert candidate_parametrizations(PD, table=True) == (HALF_VECTOR, PD)
+    assert candidate_parametrizations(PD) == (PD,)  # scattered data in its own angles
+    # f cos(theta_l) is not reciprocal: no symmetric frame
+    assert candidate_parametrizations(PD, cosine=True, table=True) == (PD,)
+
+
+def test_a_bad_values_word_is_refused_before_any_fit(table: Path) -> None:
+    ds = samples_dataset(read_brdf(table), HALF_VECTOR, max_points=200)
+    with pytest.raises(InputError, match="unknown values 'exp'; choose one of auto, linear, log"):
+        fit_brdf(ds, values="exp")
+
+
+def test_default_fit_of_a_table_is_log_values_in_the_half_vector_frame(
+        table: Path, tmp_path: Path) -> None:
+    out = tmp_path / "fit.json"
+    r = run_cli("brdf", "fit", table, "--max-points", "4000", "--json", "-o", out)
+    assert r.exit_code == 0, r.output
+    summary = json.loads(r.stdout)
+    assert summary["parametrization"] == HALF_VECTOR and summary["values"] == "log"
+    assert summary["success"] is True
+    doc = json.loads(out.read_text())
+    assert doc["brdf"]["values"] == "log"
+    tried = [c["parametrization"] for c in doc["brdf"]["candidates"]]
+    assert tried[0] == HALF_VECTOR
+    # away from the cells it was fitted on: the closed form within a few per cent
+    rng = np.random.default_rng(5)
+    dirs = tmp_path / "dirs.csv"
+    th_l, th_v = rng.uniform(0.05, 1.3, (2, 400))
+    ph = rng.uniform(0, 2 * np.pi, 400)
+    L = np.stack([np.sin(th_l), np.zeros(400), np.cos(th_l)], axis=1)
+    V = np.stack([np.sin(th_v) * np.cos(ph), np.sin(th_v) * np.sin(ph), np.cos(th_v)], axis=1)
+    np.savetxt(dirs, np.hstack([L, V]), delimiter=",")
+    ev = run_cli("brdf", "eval", out, "--dirs", dirs, "-o", tmp_path / "values.npy")
+    assert ev.exit_code == 0, ev.output
+    got = np.load(tmp_path / "values.npy")
+    want = material(L, V)
+    rel = np.abs(got - want) / want
+    assert np.all(got > 0) and np.all(np.isfinite(got))
+    assert np.median(rel) < 0.05, np.median(rel, axis=0)
+    assert np.percentile(rel, 95) < 0.25
