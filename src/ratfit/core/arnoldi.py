@@ -47,6 +47,9 @@ _MULX = {"legendre": _leg.legmulx, "chebyshev": _cheb.chebmulx, "monomial": _pol
 # recurrence reads them back (262 144 points, 35 functions: 0.065 s in blocks of 4096,
 # 0.14 s in blocks of 32 768, 0.2 s in one piece).
 _BLOCK = 4096
+# Points per block of :meth:`ArnoldiBasis.evaluate` (its in-place recurrence keeps two
+# vectors of a block besides the basis values; fastest measured at 16 384)
+_SUM_BLOCK = 16_384
 # Up to this many points a block's recurrence folds its subtractions with one
 # subtract.reduce per function; above, a loop of in-place subtractions is faster.
 _FOLD_MAX = 1024
@@ -176,8 +179,19 @@ class ArnoldiBasis:
         out = np.zeros(tt.shape[1])
         if k == 0:
             return out
+        for s in range(0, tt.shape[1], _SUM_BLOCK):
+            out[s:s + _SUM_BLOCK] = self._sum_block(tt[:, s:s + _SUM_BLOCK], c)
+        return out
+
+    def evaluate_blas(self, x: ArrayLike, coef: ArrayLike, *, window: bool = False) -> Array:
+        """sum_k coef_k phi_k(x) through BLAS products, in blocks of points: about twice as
+        fast as :meth:`evaluate`, and not in its fixed order of operations, so for values
+        no verdict is taken on and no export reproduces (a denominator guess's weights)."""
+        c = np.asarray(coef, dtype=float)
+        tt, k = self._window_rows(x, c.size, window)
+        out = np.empty(tt.shape[1])
         for s in range(0, tt.shape[1], _BLOCK):
-            out[s:s + _BLOCK] = self._sum_block(tt[:, s:s + _BLOCK], c)
+            out[s:s + _BLOCK] = c @ self._block(tt[:, s:s + _BLOCK], k) if k else 0.0
         return out
 
     def _sum_block(self, tt: Array, c: Array) -> Array:
@@ -207,12 +221,20 @@ class ArnoldiBasis:
                 f[i] /= H[i, i]
                 s = s + c[i] * f[i]
             return s
+        # each product into one scratch vector and each result in place: the same
+        # operations as ``v -= H[j, i] * f[j]``, without a temporary per operation
+        # (a MERL table's 1.1e6 points, 22 functions: 0.28 s -> 0.17 s in blocks of
+        # _SUM_BLOCK points, 45 functions: 1.1 s -> 0.7 s)
+        tmp = np.empty(b)
         for i in range(1, k):
-            v = tt[self.dims[i]] * f[self.parents[i]]
+            v = f[i]
+            np.multiply(tt[self.dims[i]], f[self.parents[i]], out=v)
             for j in range(i):
-                v -= H[j, i] * f[j]
-            f[i] = v / H[i, i]
-            s = s + c[i] * f[i]
+                np.multiply(H[j, i], f[j], out=tmp)
+                np.subtract(v, tmp, out=v)
+            np.divide(v, H[i, i], out=v)
+            np.multiply(c[i], v, out=tmp)
+            np.add(s, tmp, out=s)
         return s
 
     def to_family(self, coef: ArrayLike) -> Array:

@@ -1358,4 +1358,5 @@ class DenominatorGuess:
                 basis, V = ArnoldiBasis.build(self.space, self.t, self.weights, self.m)
                 self._fn = (basis, V.T @ (self.weights * self.values))
             basis, coef = self._fn
-        return np.asarray(basis.evaluate(pts, coef, window=True), dtype=np.float64)
+        # weights, not a verdict: BLAS products (ArnoldiBasis.evaluate_blas)
+        return np.asarray(basis.evaluate_blas(pts, coef, window=True), dtype=np.float64)
