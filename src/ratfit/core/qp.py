@@ -52,9 +52,11 @@ BASIS_POINTS = 16_384
 # of _CHUNK points for the next active-set rounds of that split) that the systems of
 # the whole process may hold at once. A chunk over it is computed again at each
 # round (the same numbers). Two channels searched side by side held a (50, 50)
-# split's 890 MB each at once: 2.6 GB peak on a full MERL table; 1.7 GB with this
-# budget (1 GiB: 2.0 GB).
-DESIGN_BUDGET = 768 << 20
+# split's 890 MB each at once: 2.6 GB peak on a full MERL table; 1.7 GB with 768 MiB
+# (1 GiB: 2.0 GB). A channel's polish (its rows at every sample, 390 MB at n + m = 44)
+# now runs beside the last channel's search: with 768 MiB the known MERL table's
+# default fit peaked at 1.83-1.99 GiB in 53-57 s, with 512 MiB at 1.81 GiB in 59 s.
+DESIGN_BUDGET = 512 << 20
 
 
 class _Budget:
