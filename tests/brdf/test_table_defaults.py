@@ -8,6 +8,7 @@ before the table's own RUSIN_TH_TD_PD. The table here is a closed-form material
 from __future__ import annotations
 
 import json
+import time
 from pathlib import Path
 
 import numpy as np
@@ -74,9 +75,15 @@ def test_a_bad_values_word_is_refused_before_any_fit(table: Path) -> None:
 def test_default_fit_of_a_table_is_log_values_in_the_half_vector_frame(
         table: Path, tmp_path: Path) -> None:
     out = tmp_path / "fit.json"
+    t0 = time.perf_counter()
     r = run_cli("brdf", "fit", table, "--max-points", "4000", "--json", "-o", out)
+    wall = time.perf_counter() - t0
     assert r.exit_code == 0, r.output
     summary = json.loads(r.stdout)
+    # the job's phases in wall seconds: within the call's own wall time
+    phases = summary["phase_seconds"]
+    assert {"fit", "write"} <= set(phases) and phases["fit"] > 0
+    assert sum(phases.values()) <= wall
     assert summary["parametrization"] == HALF_VECTOR and summary["values"] == "log"
     assert summary["success"] is True
     doc = json.loads(out.read_text())

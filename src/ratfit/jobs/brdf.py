@@ -232,6 +232,9 @@ class BRDFFitReport:
         doc["shared_denominator"] = bool(self.meta.get("shared_denominator"))
         # "log": each channel's value is exp(p / q) of the n and m above
         doc["values"] = str(self.meta.get("values", "linear"))
+        # wall seconds of each phase of the job ("seconds" above sums the channels'
+        # searches, which run side by side on large data)
+        doc["phase_seconds"] = {k: round(v, 3) for k, v in self.seconds.items()}
         if self.meta.get("shared"):
             doc["shared"] = dict(self.meta["shared"])
         return doc
