@@ -45,3 +45,16 @@ def test_a_large_split_hands_memory_back_after_its_full_pass(monkeypatch) -> Non
     system.release()
     assert calls == [1]
     assert qp._DESIGN_BUDGET.used == 0
+
+
+def test_prefer_small_pages_turns_numpy_huge_pages_off() -> None:
+    """The command's process asks numpy for small pages: numpy's switch returns its
+    previous state, which is off after prefer_small_pages."""
+    core = getattr(np, "_core", None) or np.core
+    switch = core.multiarray._set_madvise_hugepage
+    before = switch(True)
+    try:
+        assert memory.prefer_small_pages() is True
+        assert switch(False) is False
+    finally:
+        switch(before)
