@@ -988,8 +988,11 @@ class BRDFFitter(RationalFitter):
     """
 
     options_type = BRDFOptions
-    # the chosen fit's full validity proof is running (the polish, the final check)
+    # the chosen fit's full validity proof is running (the polish, the final check): for
+    # every channel (a re-search's own fitter, a shared denominator's helper), or for
+    # the channels in _final_channels (a set of this fit's, see _full_proof)
     _final_proof: bool = False
+    _final_channels: frozenset[int] | set[int] = frozenset()
     # a channel searched again with the full proof on every candidate
     _full_search: bool = False
     # every channel's validity points in one list (a shared denominator's helper: one q)
@@ -1071,12 +1074,12 @@ class BRDFFitter(RationalFitter):
         if not on:
             yield
             return
-        channels = self.__dict__.setdefault("_final_channels", set())
-        channels.add(j)
+        assert isinstance(self._final_channels, set)  # made by _fit_segments
+        self._final_channels.add(j)
         try:
             yield
         finally:
-            channels.discard(j)
+            self._final_channels.discard(j)
 
     def _values_checked(self, res: FitResult, j: int) -> FitResult:
         """A verified fit of log values checked as its values: exp(p / q), as every
@@ -1393,7 +1396,7 @@ class BRDFFitter(RationalFitter):
             # While the search runs, a short proof that finds q <= 0 or p < 0 rejects the
             # candidate and one that runs out of pieces lets it on; the chosen fit gets
             # the full proof (:meth:`_proved`), which alone makes it a success.
-            final = self._final_proof or j in self.__dict__.get("_final_channels", ())
+            final = self._final_proof or j in self._final_channels
             proof = prove_validity(rf, self.parametrization, keep=keep, values=self.value_form,
                                    max_boxes=40_000 if final else SEARCH_PROOF_BOXES)
             self.__dict__.setdefault("_proofs", {})[id(rf)] = proof

@@ -189,9 +189,11 @@ class ArnoldiBasis:
         no verdict is taken on and no export reproduces (a denominator guess's weights)."""
         c = np.asarray(coef, dtype=float)
         tt, k = self._window_rows(x, c.size, window)
-        out = np.empty(tt.shape[1])
+        out = np.zeros(tt.shape[1])
+        if k == 0:
+            return out
         for s in range(0, tt.shape[1], _BLOCK):
-            out[s:s + _BLOCK] = c @ self._block(tt[:, s:s + _BLOCK], k) if k else 0.0
+            out[s:s + _BLOCK] = c @ self._block(tt[:, s:s + _BLOCK], k)
         return out
 
     def _sum_block(self, tt: Array, c: Array) -> Array:

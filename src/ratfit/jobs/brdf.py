@@ -290,7 +290,7 @@ def fit_brdf_file(request: BRDFFitRequest | str | Path) -> BRDFFitReport:
     gives the fit of ``ratfit brdf fit path``, coefficient for coefficient
     (a Cornell file in a 3-D angle frame, not its 6-D Cartesian pairs).
     """
-    from ratfit.brdf.fitter import candidate_parametrizations, fit_brdf_auto
+    from ratfit.brdf.fitter import candidate_parametrizations, fit_brdf_auto, is_table
     from ratfit.brdf.io import read_brdf, samples_dataset
     from ratfit.io.fitfile import file_sha256, save_fit
 
@@ -310,8 +310,7 @@ def fit_brdf_file(request: BRDFFitRequest | str | Path) -> BRDFFitReport:
         o = req.options
         # No frame and no fixed size given: the half-vector frame first, then the angles.
         names = (first,) if req.parametrization or o.n is not None or o.total is not None \
-            else candidate_parametrizations(first, cosine=req.cosine,
-                                            table=own_ds.meta.get("format") == "merl")
+            else candidate_parametrizations(first, cosine=req.cosine, table=is_table(own_ds))
         datasets = [own_ds if name == own else frame(name) for name in names]
     with clock.phase("fit"):
         kw = {k: v for k, v in o.params().items() if k not in ("parametrization", "used_coords")}
