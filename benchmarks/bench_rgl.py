@@ -225,7 +225,7 @@ def main() -> None:
         stem = {f.stem.removesuffix("_rgb"): f for f in files}
         files = [stem[w] for w in (o.removesuffix(".npz").removesuffix("_rgb")
                                    for o in args.only) if w in stem]
-    if args.limit:
+    if args.limit is not None:
         files = files[: args.limit]
     if not files and not args.known:
         sys.exit(f"error: no .npz material in {args.data} matches")
