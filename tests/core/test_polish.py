@@ -155,13 +155,13 @@ def test_polish_asks_p_above_a_margin_at_the_positivity_points(monkeypatch) -> N
     seen = []
     real = polish._solve_band
 
-    def spy(P, Q, lo, hi, qp, tau, grid, h_grid, q_floor, c, *rest):
-        seen.append((grid, h_grid, q_floor, c, Q))
-        return real(P, Q, lo, hi, qp, tau, grid, h_grid, q_floor, c, *rest)
+    def spy(D, lo, hi, qp, tau, grid, h_grid, q_floor, c, *rest):
+        seen.append((grid, h_grid, q_floor, c, D))
+        return real(D, lo, hi, qp, tau, grid, h_grid, q_floor, c, *rest)
 
     monkeypatch.setattr(polish, "_solve_band", spy)
     assert polish_fit(rf, seg, 0, positive_at=extra) is not None
-    grid, h, q_floor, c, Q = seen[0]
+    grid, h, q_floor, c, D = seen[0]
     p_rows = np.arange(len(h)) >= len(h) - len(extra)  # the p rows come last
     start = grid[p_rows] @ c
     assert np.all(start > 0)
@@ -170,8 +170,29 @@ def test_polish_asks_p_above_a_margin_at_the_positivity_points(monkeypatch) -> N
     assert np.allclose(h[p_rows], expect, rtol=1e-9) and np.all(h[p_rows] > 0)
     # q rows (at the data, and at the extra points): 1 % of the start's smallest q on
     # the data (q scaled to mean 1 there)
-    assert np.isclose(q_floor, 0.01 * np.min(Q @ c[rf.n:]), rtol=1e-9)
+    assert np.isclose(q_floor, 0.01 * np.min(D.values(c)[1]), rtol=1e-9)
     assert np.allclose(h[~p_rows], q_floor, rtol=1e-12)
+
+
+class _Rows:
+    """A stand-in basis whose values at point i are row i of a matrix."""
+
+    def __init__(self, M: np.ndarray) -> None:
+        self.M = M
+
+    def design(self, x: np.ndarray, count: int) -> np.ndarray:
+        return self.M[np.asarray(x, dtype=int).ravel(), :count]
+
+
+def _matrices(P: np.ndarray, Q: np.ndarray):
+    """The polish's sample values with P and Q given as matrices."""
+    from types import SimpleNamespace
+
+    from ratfit.core import polish
+
+    rf = SimpleNamespace(n=P.shape[1], m=Q.shape[1], p_basis=_Rows(P), q_basis=_Rows(Q),
+                         space=None)
+    return polish._Design(rf, np.arange(P.shape[0]))
 
 
 def test_blocked_r_factor_and_band_rows_match_the_stacked_matrices() -> None:
@@ -185,13 +206,14 @@ def test_blocked_r_factor_and_band_rows_match_the_stacked_matrices() -> None:
     y, scale = rng.uniform(0.5, 2.0, N), rng.uniform(0.1, 10.0, N)
     M = np.hstack([P, -y[:, None] * Q]) * scale[:, None]
     ridge = 1e-10 * np.sum(M * M) / (n + m)
-    R = polish._objective_r(P, Q, y, scale)
+    D = _matrices(P, Q)
+    R = polish._objective_r(D, y, scale)
     R_ref = np.linalg.qr(np.vstack([M, np.sqrt(ridge) * np.eye(n + m)]), mode="r")
     assert np.allclose(np.abs(R), np.abs(R_ref), rtol=1e-10, atol=1e-10)
     assert np.allclose(R.T @ R, M.T @ M + ridge * np.eye(n + m), rtol=1e-10)
     lo, hi = rng.uniform(0.5, 1.0, N), rng.uniform(1.5, 2.0, N)
     grid, h = rng.normal(size=(5, n + m)), rng.uniform(size=5)
-    band = polish._BandRows(P, Q, lo, hi, grid, h)
+    band = polish._BandRows(D, lo, hi, grid, h)
     G_lo = np.hstack([P, -lo[:, None] * Q])
     G_hi = np.hstack([-P, hi[:, None] * Q])
     ref = np.vstack([G_lo / np.linalg.norm(G_lo, axis=1)[:, None],
@@ -216,7 +238,7 @@ def test_band_rows_keep_q_above_its_floor_at_the_data() -> None:
     P, Q = rng.normal(size=(N, n)), rng.normal(size=(N, m))
     lo, hi = rng.uniform(0.5, 1.0, N), rng.uniform(1.5, 2.0, N)
     grid, h = rng.normal(size=(4, n + m)), rng.uniform(size=4)
-    band = polish._BandRows(P, Q, lo, hi, grid, h, q_floor=0.25)
+    band = polish._BandRows(_matrices(P, Q), lo, hi, grid, h, q_floor=0.25)
     assert band.count == 3 * N + 4
     idx = np.array([2 * N, 2 * N + 7, 3 * N - 1, 3 * N, 3 * N + 3])
     rows, hh = band.rows(idx)
@@ -251,9 +273,9 @@ def test_repair_mode_is_one_pass_inside_half_the_start_margin(monkeypatch) -> No
         passes.append(a[-1] if len(a) > 14 else k.get("repair"))
         return real_pass(*a, **k)
 
-    def recording_band(P, Q, lo_, hi_, qp, tau, *a, **k):
+    def recording_band(D, lo_, hi_, qp, tau, *a, **k):
         cuts.append(tau)
-        return real_band(P, Q, lo_, hi_, qp, tau, *a, **k)
+        return real_band(D, lo_, hi_, qp, tau, *a, **k)
 
     monkeypatch.setattr(polish, "_polish_pass", counting_pass)
     monkeypatch.setattr(polish, "_solve_band", recording_band)
@@ -271,3 +293,69 @@ def test_repair_mode_is_one_pass_inside_half_the_start_margin(monkeypatch) -> No
     cuts.clear()
     polish_fit(rf, seg, 0, positive_at=extra, tau=tau)
     assert cuts[0] == tau and passes and set(passes) == {False}
+
+
+@pytest.mark.parametrize("screen", [None, 600])
+def test_polish_is_the_same_whatever_the_design_budget_keeps(monkeypatch, screen) -> None:
+    """The polish keeps its basis values at every sample only as far as the process's
+    design budget goes and computes the rest again at each pass: with the budget
+    exhausted, half of it or all of it, the same coefficients bit for bit, and the
+    budget's bytes all handed back afterwards (with the rounds screening a few
+    samples before every sample, as on large data, too)."""
+    from ratfit.core import polish, qp
+
+    if screen is not None:
+        monkeypatch.setattr(polish, "_SCREEN", screen)
+    x = np.linspace(0.0, 1.0, 3 * polish._BLOCK + 123)  # four blocks
+    y = np.exp(2 * x) / (1.3 - x)
+    rf, seg = _fit(x, y, 0.05)
+    k = rf.n + rf.m
+    results = []
+    for limit in (0, 8 * k * polish._BLOCK * 2, qp.DESIGN_BUDGET):
+        monkeypatch.setattr(qp._DESIGN_BUDGET, "limit", limit)
+        kept = []
+        real_close = polish._Design.close
+
+        def spy_close(self, kept=kept, real_close=real_close):
+            kept.append(len(self.store.chunks))
+            real_close(self)
+
+        monkeypatch.setattr(polish._Design, "close", spy_close)
+        pol = polish_fit(rf, seg, 0, tau=0.02)
+        assert pol is not None and qp._DESIGN_BUDGET.used == 0
+        results.append((np.concatenate([pol.p, pol.q]), kept[0]))
+    (c0, kept0), (c1, kept1), (c2, kept2) = results
+    assert (kept0, kept2) == (0, 4) and 0 < kept1 < 4
+    assert np.array_equal(c0, c1) and np.array_equal(c0, c2)
+    assert verify(polish_fit(rf, seg, 0, tau=0.02), seg, channel=0).verified
+
+
+def test_screened_rounds_give_the_fit_of_the_full_rounds(monkeypatch) -> None:
+    """On large data the active-set rounds check the samples most likely to bind and
+    every sample only when those are met: the polished fit stays inside the inner band
+    at every sample, is as good as the fit of rounds that check every sample, and its
+    QP solves pass over every sample fewer times."""
+    from ratfit.core import polish
+
+    x = np.linspace(0.0, 1.0, 20_000)
+    y = 1.0 + 0.5 * np.sin(9 * x) + 2.0 / (1.05 - x)
+    rf, seg = _fit(x, y, 0.02)
+    fits, passes = [], []
+    real_values = polish._Design.values
+
+    def counting(self, c):
+        passes[-1] += 1
+        return real_values(self, c)
+
+    monkeypatch.setattr(polish._Design, "values", counting)
+    for screen in (10**9, 500):  # every sample each round; 500 screened
+        monkeypatch.setattr(polish, "_SCREEN", screen)
+        passes.append(0)
+        pol = polish_fit(rf, seg, 0, tau=0.02, start_rows=100)  # a few rounds
+        assert pol is not None and verify(pol, seg, channel=0).verified
+        w = seg.hi[:, 0] - seg.lo[:, 0]
+        r = pol(seg.x)
+        assert np.all(r >= seg.lo[:, 0] + 0.01 * w) and np.all(r <= seg.hi[:, 0] - 0.01 * w)
+        fits.append(_rmse(pol, seg))
+    assert fits[1] <= 1.01 * fits[0] and fits[0] < 0.9 * _rmse(rf, seg)
+    assert passes[1] < passes[0]

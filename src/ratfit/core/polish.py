@@ -31,11 +31,12 @@ from __future__ import annotations
 
 import importlib.util
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from ratfit.core.qp import _ChunkStore
 from ratfit.core.rational import RationalFunction
 from ratfit.core.segments import Segments
 from ratfit.core.solvers import solve_qp
@@ -51,6 +52,96 @@ def _design(rf: RationalFunction, x: Array) -> tuple[Array, Array]:
     P = (rf.p_basis or rf.space).design(x, rf.n)
     Q = (rf.q_basis or rf.space).design(x, rf.m)
     return P, Q
+
+
+# Points per block of the polish's passes over every sample: a block's rows stay in
+# cache (one LAPACK QR of 262 144 x 45 took 0.7 s, the same R from 8192-row blocks 0.16 s).
+_BLOCK = 8192
+
+
+class _Design:
+    """P and Q (the numerator's and denominator's basis values) at every sample, by
+    blocks of :data:`_BLOCK` points: kept as far as the process's design budget
+    (:data:`ratfit.core.qp.DESIGN_BUDGET`, shared with the searches' systems) goes,
+    computed again at each pass otherwise. Held whole, a full MERL table's P and Q at
+    n + m = 44 were 373 MiB beside a search's 512 MiB (the default fit's 1.85 GiB
+    peak). A block is the same numbers kept or computed again (the same points
+    through the same code, both Fortran-ordered), and rows for the active set are
+    always evaluated at their own points, so the polish's answer does not depend on
+    what the budget let it keep."""
+
+    def __init__(self, rf: RationalFunction, x: Array) -> None:
+        self.rf, self.x = rf, x
+        self.N = x.shape[0]
+        self.n, self.m = rf.n, rf.m
+        self.starts = range(0, self.N, _BLOCK)
+        self.store = _ChunkStore()
+        # the last values asked for (a pass asks for the same coefficients' values
+        # several times), each sample's squared row norms, q's column means
+        self._recent: list[tuple[bytes, tuple[Array, Array]]] = []
+        self._norms: tuple[Array, Array] | None = None
+        self._q_mean: Array | None = None
+        k = self.n + self.m
+        # every block's two arrays, each aligned to 64 bytes
+        self.store.reserve(8 * (self.N * k + 16 * len(self.starts)))
+
+    def block(self, i: int) -> tuple[Array, Array]:
+        """(P, Q) at the points of block ``i``."""
+        kept = self.store.chunks.get(i)
+        if kept is not None:
+            return kept
+        s = self.starts[i]
+        P, Q = _design(self.rf, self.x[s:s + _BLOCK])
+        pair = (np.asfortranarray(P), np.asfortranarray(Q))
+        self.store.keep(i, pair)
+        return pair
+
+    def blocks(self) -> Iterator[tuple[slice, Array, Array]]:
+        for i, s in enumerate(self.starts):
+            P, Q = self.block(i)
+            yield slice(s, s + P.shape[0]), P, Q
+
+    def values(self, c: Array) -> tuple[Array, Array]:
+        """p = P a and q = Q b at every sample, for coefficients c = (a, b) (read-only)."""
+        key = np.asarray(c, dtype=np.float64).tobytes()
+        for k, out in self._recent:
+            if k == key:
+                return out
+        pa, qb = np.empty(self.N), np.empty(self.N)
+        a, b = c[:self.n], c[self.n:]
+        for sl, P, Q in self.blocks():
+            pa[sl] = P @ a
+            qb[sl] = Q @ b
+        pa.flags.writeable = qb.flags.writeable = False
+        self._recent = [(key, (pa, qb)), *self._recent[:1]]
+        return pa, qb
+
+    def norms2(self) -> tuple[Array, Array]:
+        """|P_i|^2 and |Q_i|^2 at every sample."""
+        if self._norms is None:
+            pp, qq = np.empty(self.N), np.empty(self.N)
+            for sl, P, Q in self.blocks():
+                pp[sl] = np.einsum("ij,ij->i", P, P)
+                qq[sl] = np.einsum("ij,ij->i", Q, Q)
+            self._norms = pp, qq
+        return self._norms
+
+    def q_mean(self) -> Array:
+        """Mean of each q basis function over the samples."""
+        if self._q_mean is None:
+            total = np.zeros(self.m)
+            for _, _, Q in self.blocks():
+                total += Q.sum(axis=0)
+            self._q_mean = total / max(self.N, 1)
+        return self._q_mean
+
+    def rows(self, idx: NDArray[np.int64]) -> tuple[Array, Array]:
+        """(P, Q) at the samples ``idx``, evaluated there (whatever is kept)."""
+        return _design(self.rf, self.x[idx])
+
+    def close(self) -> None:
+        self.store.clear()
+        self._recent, self._norms, self._q_mean = [], None, None
 
 
 def polish_fit(
@@ -101,21 +192,36 @@ def polish_fit(
     lo = seg.lo[:, channel]
     hi = seg.hi[:, channel]
     y = seg.center[:, channel]
+    design = _Design(rf, x)
+    try:
+        return _polish(rf, design, lo, hi, y, weights, positive_at, tau, solver,
+                       max_rounds, start_rows, deadline, method, iterations, repair, work,
+                       numerator)
+    finally:
+        design.close()
+
+
+def _polish(rf: RationalFunction, D: _Design, lo: Array, hi: Array, y: Array,
+            weights: ArrayLike | None, positive_at: ArrayLike | None, tau: float,
+            solver: str, max_rounds: int, start_rows: int, deadline: float | None,
+            method: str, iterations: int, repair: bool, work: WorkBudget | None,
+            numerator: bool) -> RationalFunction | None:
+    """:func:`polish_fit` on the samples' basis values ``D``."""
     n = rf.n
-    P, Q = _design(rf, x)
     c = np.concatenate([rf.p, rf.q])
-    q0 = Q @ rf.q
+    q0 = D.values(c)[1]
     if not np.all(np.isfinite(q0)) or np.all(q0 == 0):
         return None
-    c = c / float(np.mean(q0))  # q > 0 on the data, of mean 1
-    if np.any(Q @ c[n:] <= 0):
+    scale = float(np.mean(q0))
+    c = c / scale  # q > 0 on the data, of mean 1
+    if np.any(q0 / scale <= 0):
         return None
-    w = np.ones(x.shape[0]) if weights is None else np.asarray(weights, dtype=float).ravel()
+    w = np.ones(D.N) if weights is None else np.asarray(weights, dtype=float).ravel()
     grid, p_rows = _positivity_rows(rf, positive_at, numerator)
     methods = {"auto": ("qp", "socp"), "qp": ("qp",), "socp": ("socp",)}[method]
     if importlib.util.find_spec("clarabel") is None:
         methods = tuple(x for x in methods if x != "socp") or ("qp",)
-    err = _error(P, Q, y, w, n)
+    err = _error(D, y, w)
 
     def stop() -> bool:
         return _past(deadline) or (work is not None and work.exhausted)
@@ -126,14 +232,14 @@ def polish_fit(
     # step to its QP's answer is searched on the true error, so a pass never makes
     # the fit worse (its QP's optimum can be: cayman R (1, 8), RMSE 0.068 -> 0.25).
     for _ in range(1 if repair else iterations):
-        step = _polish_pass(P, Q, lo, hi, y, w, c, grid, p_rows, tau, solver, methods,
+        step = _polish_pass(D, lo, hi, y, w, c, grid, p_rows, tau, solver, methods,
                             max_rounds, start_rows, stop, work, repair)
         if step is None:
             break
         if repair:
             c, improved = step, True
             break
-        c_new, e_new = _line_search(P, Q, y, w, c, step)
+        c_new, e_new = _line_search(D, y, w, c, step)
         if not e_new < best:
             break
         gain = 1.0 - e_new / best
@@ -147,27 +253,28 @@ def polish_fit(
     return RationalFunction(rf.space, c[:n], c[n:], p_basis=rf.p_basis, q_basis=rf.q_basis)
 
 
-def _error(P: Array, Q: Array, y: Array, w: Array, n: int) -> Callable[[Array], float]:
+def _error(D: _Design, y: Array, w: Array) -> Callable[[Array], float]:
     """The weighted squared error of coefficients (a, b) at the data (inf when q <= 0)."""
 
     def err(c: Array) -> float:
-        q = Q @ c[n:]
+        p, q = D.values(c)
         if not np.all(q > 0):
             return float("inf")
-        return float(np.sum((w * ((P @ c[:n]) / q - y)) ** 2))
+        return float(np.sum((w * (p / q - y)) ** 2))
 
     return err
 
 
-def _line_search(P: Array, Q: Array, y: Array, w: Array, c0: Array,
+def _line_search(D: _Design, y: Array, w: Array, c0: Array,
                  c1: Array) -> tuple[Array, float]:
     """The best point of the segment c0 -> c1 for the true error. Both ends meet
     every linear row of the polish (band, q > 0, p >= 0), so every point between
     them does: a coarse scan, then a golden-section refinement around its best.
     p and q are linear along the segment: two products each, then O(N) a point."""
-    n = P.shape[1]
-    p0, q0 = P @ c0[:n], Q @ c0[n:]
-    dp, dq = P @ c1[:n] - p0, Q @ c1[n:] - q0
+    p0, q0 = D.values(c0)
+    p1, q1 = D.values(c1)
+    dp, dq = p1 - p0, q1 - q0
+    del p1, q1
 
     def err(a: float) -> float:
         q = q0 + a * dq
@@ -194,20 +301,19 @@ def _line_search(P: Array, Q: Array, y: Array, w: Array, c0: Array,
     return c0 + best_a * (c1 - c0), best_v
 
 
-def _polish_pass(P: Array, Q: Array, lo: Array, hi: Array, y: Array, w: Array, c: Array,
+def _polish_pass(D: _Design, lo: Array, hi: Array, y: Array, w: Array, c: Array,
                  grid: Array, p_rows: Array, tau: float, solver: str,
                  methods: tuple[str, ...], max_rounds: int, start_rows: int,
                  stop: Callable[[], bool], work: WorkBudget | None,
                  repair: bool = False) -> Array | None:
     """One linearised polish around coefficients ``c`` (q > 0 of mean 1 on the data):
     the QP's coefficients, or None when every cut-off fails."""
-    n = P.shape[1]
-    q0 = Q @ c[n:]
+    p_start, q0 = D.values(c)
     # Objective: || diag(w / q0) (P a - y Q b) ||^2, plus a tiny ridge for uniqueness.
     # H = M^T M + ridge I = R^T R, z = R c; R from a QR of the stacked rows, not a
     # Cholesky of H: with q over six decades (a mirror's peak) H's condition is the
     # square of M's and the whitened QP met its rows only to ~1e-4.
-    R = _objective_r(P, Q, y, w / q0)
+    R = _objective_r(D, y, w / q0)
     k = R.shape[0]
     if not np.all(np.isfinite(R)) or np.any(np.abs(np.diag(R)) == 0):
         return None
@@ -219,16 +325,16 @@ def _polish_pass(P: Array, Q: Array, lo: Array, hi: Array, y: Array, w: Array, c
     # at the next point found beside it (garnet_red G: 4 rounds, no polish).
     # (half the start's own p where that is smaller: the start stays feasible)
     q_floor = 0.01 * float(q0.min())
-    p_start = np.maximum(grid @ c, 0.0)
+    grid_start = np.maximum(grid @ c, 0.0)
     h_grid = np.where(p_rows > 0,
-                      np.minimum(1e-6 * float(np.max(np.abs(y))) * p_rows, 0.5 * p_start),
+                      np.minimum(1e-6 * float(np.max(np.abs(y))) * p_rows, 0.5 * grid_start),
                       q_floor)
     # The band's inner part may be empty at the minimal size (the search's own
     # margin can be 1e-3 of a width): narrower cut-offs before giving up, the last
     # one half the starting fit's own margin, where the start itself is feasible.
     cuts = [tau, tau / 4, tau / 20]
     with np.errstate(all="ignore"):
-        start = (P @ c[:n]) / q0
+        start = p_start / q0
         margin = float(np.min(np.minimum(start - lo, hi - start) / (hi - lo)))
     if 0 < margin / 2 < cuts[-1]:
         cuts.append(margin / 2)
@@ -239,7 +345,7 @@ def _polish_pass(P: Array, Q: Array, lo: Array, hi: Array, y: Array, w: Array, c
     for how in methods:
         for cut in cuts:
             qp = _whitened(Rinv, solver) if how == "qp" else _cone(R)
-            out = _solve_band(P, Q, lo, hi, qp, cut, grid, h_grid, q_floor, c,
+            out = _solve_band(D, lo, hi, qp, cut, grid, h_grid, q_floor, c,
                               max_rounds, start_rows, stop, work)
             if out is not None or stop():
                 return out
@@ -338,21 +444,15 @@ def _past(deadline: float | None) -> bool:
     return deadline is not None and time.perf_counter() > deadline
 
 
-# Points per block of the polish's passes over every sample: a block's rows stay in
-# cache (one LAPACK QR of 262 144 x 45 took 0.7 s, the same R from 8192-row blocks 0.16 s).
-_BLOCK = 8192
-
-
-def _objective_r(P: Array, Q: Array, y: Array, scale: Array, ridge: float = 1e-10) -> Array:
+def _objective_r(D: _Design, y: Array, scale: Array, ridge: float = 1e-10) -> Array:
     """R of the QR of [M; sqrt(r) I] with M = diag(scale) [P, -y Q] and r = ``ridge``
     x the mean squared column norm of M: M is never stored whole; each block of rows
     is built and reduced to its R factor (TSQR), the same R up to signs, as accurate
     as one Householder QR and several times faster on hundreds of thousands of rows."""
-    k = P.shape[1] + Q.shape[1]
+    k = D.n + D.m
     parts = []
-    for s in range(0, P.shape[0], _BLOCK):
-        sl = slice(s, s + _BLOCK)
-        M = np.hstack([P[sl], -y[sl, None] * Q[sl]])
+    for sl, P, Q in D.blocks():
+        M = np.hstack([P, -y[sl, None] * Q])
         M *= scale[sl, None]
         parts.append(_r_factor(M))
     R0 = parts[0] if len(parts) == 1 else _r_factor(np.vstack(parts))
@@ -372,17 +472,16 @@ class _BandRows:
     stored as one 2N x k matrix), with ``q_floor`` the rows q(x_i) >= q_floor
     (N more), then the positivity rows ``grid``."""
 
-    def __init__(self, P: Array, Q: Array, lo_in: Array, hi_in: Array, grid: Array,
+    def __init__(self, D: _Design, lo_in: Array, hi_in: Array, grid: Array,
                  h_grid: Array, q_floor: float | None = None) -> None:
-        self.P, self.Q, self.lo_in, self.hi_in = P, Q, lo_in, hi_in
+        self.D, self.lo_in, self.hi_in = D, lo_in, hi_in
         self.grid, self.h_grid = grid, h_grid
-        self.N = P.shape[0]
+        self.N = D.N
         # with a q_floor, N more rows (0, Q_i) >= q_floor after the band's 2N
         self.q_floor = q_floor
         self.n_data = (3 if q_floor is not None else 2) * self.N
         # |(P_i, -lo_i Q_i)| = sqrt(|P_i|^2 + lo_i^2 |Q_i|^2): no N x k temporary
-        pp = np.einsum("ij,ij->i", P, P)
-        qq = np.einsum("ij,ij->i", Q, Q)
+        pp, qq = D.norms2()
         s_lo = np.sqrt(pp + lo_in * lo_in * qq)
         s_hi = np.sqrt(pp + hi_in * hi_in * qq)
         s_lo[s_lo == 0] = 1.0
@@ -396,21 +495,28 @@ class _BandRows:
     def rows(self, idx: NDArray[np.int64]) -> tuple[Array, Array]:
         """(G, h) at rows ``idx``."""
         N = self.N
-        out = np.empty((idx.size, self.P.shape[1] + self.Q.shape[1]))
+        n = self.D.n
+        out = np.empty((idx.size, n + self.D.m))
         h = np.zeros(idx.size)
-        n = self.P.shape[1]
         D = self.n_data
         lo_r, hi_r, g_r = idx < N, (idx >= N) & (idx < 2 * N), idx >= D
         q_r = (idx >= 2 * N) & (idx < D)
+        # the samples these rows need, evaluated once each
+        pts = np.unique(idx[idx < D] % N)
+        P, Q = self.D.rows(pts)
+
+        def at(i: NDArray[np.int64]) -> NDArray[np.int64]:
+            return np.searchsorted(pts, i)
+
         i = idx[lo_r]
-        out[lo_r, :n] = self.P[i] / self.s_lo[i, None]
-        out[lo_r, n:] = -(self.lo_in[i] / self.s_lo[i])[:, None] * self.Q[i]
+        out[lo_r, :n] = P[at(i)] / self.s_lo[i, None]
+        out[lo_r, n:] = -(self.lo_in[i] / self.s_lo[i])[:, None] * Q[at(i)]
         i = idx[hi_r] - N
-        out[hi_r, :n] = -self.P[i] / self.s_hi[i, None]
-        out[hi_r, n:] = (self.hi_in[i] / self.s_hi[i])[:, None] * self.Q[i]
+        out[hi_r, :n] = -P[at(i)] / self.s_hi[i, None]
+        out[hi_r, n:] = (self.hi_in[i] / self.s_hi[i])[:, None] * Q[at(i)]
         if q_r.any():
             out[q_r, :n] = 0.0
-            out[q_r, n:] = self.Q[idx[q_r] - 2 * N]
+            out[q_r, n:] = Q[at(idx[q_r] - 2 * N)]
             h[q_r] = self.q_floor
         out[g_r] = self.grid[idx[g_r] - D]
         h[g_r] = self.h_grid[idx[g_r] - D]
@@ -430,19 +536,27 @@ class _BandRows:
         return np.concatenate(parts)
 
 
-def _solve_band(P: Array, Q: Array, lo: Array, hi: Array, qp: QPStep, tau: float,
+# Large data: the active-set rounds check the samples most likely to bind (the
+# starting fit's tightest, and every sample whose row a round added), this many at
+# least, and pass over every sample only when all of those are met. On a full MERL
+# table 63 of a polish's 86 passes over every sample were rounds' checks.
+_SCREEN = 65_536
+
+
+def _solve_band(D: _Design, lo: Array, hi: Array, qp: QPStep, tau: float,
                 grid: Array, h_grid: Array, q_floor: float, c_start: Array,
                 max_rounds: int, start_rows: int, stop: Callable[[], bool],
                 work: WorkBudget | None) -> Array | None:
     """The active-set QP of :func:`polish_fit` for one cut-off ``tau``: its
     coefficients (a, b), or None when infeasible, unsolved or out of time."""
-    n, m = P.shape[1], Q.shape[1]
+    n, m = D.n, D.m
     k = n + m
+    N = D.N
     width = hi - lo
-    band = _BandRows(P, Q, lo + tau * width, hi - tau * width, grid, h_grid, q_floor)
-    mean_q = np.concatenate([np.zeros(n), Q.mean(axis=0)])
+    band = _BandRows(D, lo + tau * width, hi - tau * width, grid, h_grid, q_floor)
+    mean_q = np.concatenate([np.zeros(n), D.q_mean()])
     # Start from the rows nearest to binding for the starting fit, spread over the data.
-    slack = band.data_residuals(P @ c_start[:n], Q @ c_start[n:])
+    slack = band.data_residuals(*D.values(c_start))
     active = np.zeros(band.count, dtype=bool)
     active[smallest(slack, start_rows)] = True
     batch = first = max(200, 8 * k)
@@ -450,10 +564,37 @@ def _solve_band(P: Array, Q: Array, lo: Array, hi: Array, qp: QPStep, tau: float
     # tolerance: in z = R c coordinates an ill-conditioned H (a specular peak, q
     # over four decades) turns that tolerance into real misses of the band.
     lift = np.zeros(band.count)
-    N2 = 2 * len(lo)
     # a value is missed when it lands in the outer half of the cut (below)
     lo_half, hi_half = lo + 0.5 * tau * width, hi - 0.5 * tau * width
     tol = -1e-9 * width
+    screen = None
+    if N > 4 * _SCREEN:
+        tight = np.minimum(slack[:N], slack[N:])
+        screen = _Screen(D, band, np.union1d(smallest(tight, _SCREEN),
+                                             np.flatnonzero(active[:2 * N]) % N))
+    del slack
+
+    def check(c: Array, at: _Screen | None) -> tuple[NDArray[np.int64], Array, Array]:
+        """Rows checked, their G c - h, and which of them are missed (below)."""
+        if at is None:
+            pa, qb = D.values(c)
+            rows, res = np.arange(band.count), band.residuals(c, pa, qb)
+            sel: slice | NDArray[np.int64] = slice(None)
+        else:
+            pa, qb = at.values(c)
+            rows, res, sel = at.rows, at.residuals(c, pa, qb), at.samples
+        # missed: the value itself lands in the outer half of the cut (or, at tau = 0,
+        # outside the segment by more than 1e-9 of its width); a positivity row by
+        # more than 1e-9. A row met to rounding is not missed: with q over six decades
+        # lifting those never settles.
+        with np.errstate(all="ignore"):
+            r = pa / qb
+        off = ~(np.minimum(r - lo_half[sel], hi_half[sel] - r) >= tol[sel])
+        # (only the side a missed value crossed: lifting the other would loosen it)
+        n_off = 2 * off.size
+        missed = active[rows] & (res < 0) & np.concatenate([off, off, res[n_off:] < -1e-9])
+        return rows, res, missed
+
     for _ in range(max_rounds):
         if stop():
             return None
@@ -464,25 +605,58 @@ def _solve_band(P: Array, Q: Array, lo: Array, hi: Array, qp: QPStep, tau: float
             work.spend()
         if c is None:
             return None
-        pa, qb = P @ c[:n], Q @ c[n:]
-        res = band.residuals(c, pa, qb)
-        # missed: the value itself lands in the outer half of the cut (or, at tau = 0,
-        # outside the segment by more than 1e-9 of its width); a positivity row by
-        # more than 1e-9. A row met to rounding is not missed: with q over six decades
-        # lifting those never settles.
-        with np.errstate(all="ignore"):
-            r = pa / qb
-        off = ~(np.minimum(r - lo_half, hi_half - r) >= tol)
-        # (only the side a missed value crossed: lifting the other would loosen it)
-        missed = active & (res < 0) & np.concatenate([off, off, res[N2:] < -1e-9])
-        bad = np.flatnonzero(~(res >= 0) & ~active)
-        if bad.size == 0 and not missed.any():
+        rows, res, missed = check(c, screen)
+        bad = ~(res >= 0) & ~active[rows]
+        if screen is not None and not bad.any() and not missed.any():
+            rows, res, missed = check(c, None)  # the screened rows met: every row
+            bad = ~(res >= 0) & ~active[rows]
+        if not bad.any() and not missed.any():
             break
-        lift[missed] += 2.0 * -res[missed]
-        active[bad[smallest(res[bad], batch)]] = True
+        lift[rows[missed]] += 2.0 * -res[missed]
+        new = rows[bad][smallest(res[bad], batch)]
+        active[new] = True
+        if screen is not None:
+            screen.add(new[new < 2 * N] % N)
         # many rounds: take more rows each time, up to 10x (DAQP's time grows with
         # the rows: a 128 612-row active set took 1.4 s of QPs in one cut-off)
         batch = min(int(1.5 * batch), 10 * first)
     else:
         return None
     return c
+
+
+class _Screen:
+    """The band's rows at some of the samples (``samples``, sorted): the data rows
+    (lower, upper, q floor) of those samples and every positivity row, with P and Q
+    there kept (a few tens of MB)."""
+
+    def __init__(self, D: _Design, band: _BandRows, samples: NDArray[np.int64]) -> None:
+        self.D, self.band = D, band
+        self.samples = np.zeros(0, dtype=np.int64)
+        self.P, self.Q = np.zeros((0, D.n)), np.zeros((0, D.m))
+        self.add(samples)
+
+    def add(self, samples: NDArray[np.int64]) -> None:
+        fresh = np.setdiff1d(samples, self.samples)
+        if not fresh.size:
+            return
+        P, Q = self.D.rows(fresh)
+        order = np.argsort(np.concatenate([self.samples, fresh]), kind="stable")
+        self.samples = np.concatenate([self.samples, fresh])[order]
+        self.P = np.vstack([self.P, P])[order]
+        self.Q = np.vstack([self.Q, Q])[order]
+        N, S = self.D.N, self.samples
+        parts = [S, S + N] + ([S + 2 * N] if self.band.q_floor is not None else [])
+        self.rows = np.concatenate(parts + [np.arange(self.band.n_data, self.band.count)])
+
+    def values(self, c: Array) -> tuple[Array, Array]:
+        return self.P @ c[:self.D.n], self.Q @ c[self.D.n:]
+
+    def residuals(self, c: Array, pa: Array, qb: Array) -> Array:
+        """G c - h at :attr:`rows`."""
+        b, S = self.band, self.samples
+        parts = [(pa - b.lo_in[S] * qb) / b.s_lo[S], (b.hi_in[S] * qb - pa) / b.s_hi[S]]
+        if b.q_floor is not None:
+            parts.append(qb - b.q_floor)
+        parts.append(b.grid @ c - b.h_grid)
+        return np.concatenate(parts)

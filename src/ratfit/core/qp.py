@@ -48,14 +48,16 @@ _CHUNK = 32_768
 # Large data (more than 4x this many points): Arnoldi bases built on this many
 # points spread over the data (see ArnoldiSystem).
 BASIS_POINTS = 16_384
-# Large data: bytes of weighted design (every point's rows of a split, kept in chunks
-# of _CHUNK points for the next active-set rounds of that split) that the systems of
-# the whole process may hold at once. A chunk over it is computed again at each
-# round (the same numbers). Two channels searched side by side held a (50, 50)
+# Large data: bytes of basis values that the systems of the whole process may hold
+# at once: a search's weighted design (every point's rows of a split, kept in chunks
+# of _CHUNK points for the next active-set rounds of that split) and a polish's P and
+# Q at every sample (ratfit.core.polish). What is over it is computed again at each
+# pass (the same numbers). Two channels searched side by side held a (50, 50)
 # split's 890 MB each at once: 2.6 GB peak on a full MERL table; 1.7 GB with 768 MiB
-# (1 GiB: 2.0 GB). A channel's polish (its rows at every sample, 390 MB at n + m = 44)
-# now runs beside the last channel's search: with 768 MiB the known MERL table's
-# default fit peaked at 1.83-1.99 GiB in 53-57 s, with 512 MiB at 1.81 GiB in 59 s.
+# (1 GiB: 2.0 GB). A channel's polish (373 MiB at n + m = 44) runs beside another
+# channel's search: outside the budget the known MERL table's default fit peaked at
+# 1.81-1.91 GiB; inside it, at 1.62-1.66 GiB in the same time (384 MiB: 1.46 GiB,
+# 10 % slower).
 DESIGN_BUDGET = 512 << 20
 
 
