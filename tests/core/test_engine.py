@@ -399,3 +399,38 @@ def test_lp_margin_falls_back_to_interior_point_when_the_simplex_cycles(monkeypa
         status=1, message="iteration limit", x=None))
     with pytest.raises(qp._Undecided):
         qp._lp_margin(An)
+
+
+def test_tall_margin_lps_are_solved_on_subsets_with_the_same_verdicts(monkeypatch) -> None:
+    """Past LP_MAX_ROWS rows the margin LP is solved on a subset, more rows added where
+    its direction fails: a direction it returns has a positive margin at every row,
+    and "no direction" comes with a tight certificate (here: rows r and -r)."""
+    from ratfit.core import qp
+
+    monkeypatch.setattr(qp, "LP_MAX_ROWS", 200)
+    sizes = []
+    real = qp._lp_margin_rows
+
+    def spy(An, *a, **k):
+        sizes.append(An.shape[0])
+        return real(An, *a, **k)
+
+    monkeypatch.setattr(qp, "_lp_margin_rows", spy)
+    rng = np.random.default_rng(7)
+    rows, k = 3000, 6
+    d = np.array([1.0, 0, 0, 0, 0, 0])
+    x = rng.normal(size=(rows, k))
+    x[:, 0] = np.abs(x[:, 0]) * 0.02 + 1e-3  # a thin cone around d
+    An = x / np.linalg.norm(x, axis=1)[:, None]
+    c = qp._lp_margin(An)
+    assert c is not None and np.min(An @ c) > 0
+    assert max(sizes) <= 4 * 200 and sizes[0] == 100
+    # the LP on all rows at once finds a margin no larger
+    whole = real(An)
+    assert np.min(An @ whole) >= np.min(An @ c) - 1e-9
+    # no direction: one row and its opposite among the 3000
+    bad = An.copy()
+    bad[2500] = -bad[1700]
+    sizes.clear()
+    # the certificate is found once rows 1700 and 2500 have both joined the subset
+    assert qp._lp_margin(bad) is None and len(sizes) >= 2

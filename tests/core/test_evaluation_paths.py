@@ -71,3 +71,26 @@ def test_a_space_evaluates_in_chunks_with_the_values_of_one_product() -> None:
     whole = space.design(x, 20) @ c  # one product over every point
     np.testing.assert_array_equal(space.evaluate(x, c), whole)
     assert space.evaluate(x[:0], c).shape == (0,)
+
+
+def test_seed_form_row_norms_without_a_stored_cumulative_sum() -> None:
+    """The seed's form computes |A(n, m)|'s row norms from B by chunks, the running
+    sum of B^2 along each row (no second N x k array): the numbers a stored
+    cumulative sum gave, bit for bit, and the norms of the rows themselves."""
+    from ratfit.core.qp import _CHUNK, ConstraintSystem
+    from ratfit.core.segments import Segments
+    from ratfit.fitting.search import RationalFitter
+
+    rng = np.random.default_rng(0)
+    x = rng.uniform(0.0, 10.0, (_CHUNK + 5000, 2))  # two chunks
+    y = np.exp(-x[:, 0] / 3.0) + x[:, 1]
+    seg = Segments.from_widths(x, y, dt=0.1)
+    system = ConstraintSystem(RationalFitter(jobs=1).prepare(seg), seg, 0)
+    system.prepare(12, 12)
+    cum = np.cumsum(system.B ** 2, axis=1)
+    for n, m in [(1, 1), (5, 3), (3, 11), (12, 12)]:
+        sp, sq = cum[:, n - 1], cum[:, m - 1]
+        stored = np.sqrt(np.concatenate([sp + system.lo**2 * sq, sp + system.hi**2 * sq]))
+        got = system.row_norms(n, m)
+        assert np.array_equal(got, stored)
+        assert np.allclose(got, np.linalg.norm(system.rows(n, m), axis=1), rtol=1e-13)

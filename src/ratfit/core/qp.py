@@ -225,7 +225,6 @@ class ConstraintSystem:
         self._order = self.points.order
         self._k = 0
         self.B = np.zeros((self.n_points, 0))
-        self._cum_sq = self.B
         self._R: Array | None = None
         self._lock = threading.Lock()
 
@@ -242,7 +241,6 @@ class ConstraintSystem:
                 if cap is not None:
                     k = max(need, min(k, cap))
                 self.B = self.space.design(self.t, k, window=True)
-                self._cum_sq = np.cumsum(self.B**2, axis=1)
                 self._k = k
                 self._R = None
             if self._R is None:
@@ -282,7 +280,15 @@ class ConstraintSystem:
         return np.hstack([sign * b[:, :n], w * b[:, :m]])
 
     def row_norms(self, n: int, m: int) -> Array:
-        sp, sq = self._cum_sq[:, n - 1], self._cum_sq[:, m - 1]
+        # |B_i[:n]|^2 as the running sum along the row (the same numbers as a stored
+        # cumulative sum of B^2, which cost another N x k: 424 MiB at k = 50 on a full
+        # MERL table, where this form is the fallback of the weighted one)
+        k = max(n, m) if min(n, m) >= 1 else self._k
+        sp, sq = np.empty(self.n_points), np.empty(self.n_points)
+        for start in range(0, self.n_points, _CHUNK):
+            sl = slice(start, start + _CHUNK)
+            cum = np.cumsum(self.B[sl, :k] ** 2, axis=1)
+            sp[sl], sq[sl] = cum[:, n - 1], cum[:, m - 1]
         return np.sqrt(np.concatenate([sp + self.lo**2 * sq, sp + self.hi**2 * sq]))
 
     def residuals(self, n: int, m: int, c: Array) -> Array:
@@ -747,9 +753,43 @@ LP_IPM_ITERATIONS = 500
 # row and column (23 264), where the interior-point method takes a few iterations of a
 # 101 x 101 system.
 LP_SIMPLEX_PER_COLUMN = 50
+# Rows of one margin LP at most: HiGHS (through SciPy) took 300-500 MiB for a 30 000 x 87
+# LP, and on a full MERL table (cardboard) the process grew from 2.0 to 2.6 GB inside
+# one. Taller row sets are solved on a subset, more rows added where its direction fails.
+LP_MAX_ROWS = 8192
 
 
 def _lp_margin(An: Array, time_limit: float | None = None) -> Array | None:
+    """:func:`_lp_margin_rows` on at most :data:`LP_MAX_ROWS` rows at a time.
+
+    "No direction" for a subset of the rows holds for all of them (its certificate,
+    zero on the other rows, is one for the whole set); a direction of the subset is a
+    direction of the set only where every row has a positive margin, else the rows it
+    misses most join the subset and the LP is solved again (at most
+    4 :data:`LP_MAX_ROWS` rows in all; past that, no verdict)."""
+    rows = An.shape[0]
+    if rows <= LP_MAX_ROWS:
+        return _lp_margin_rows(An, time_limit)
+    t0 = time.perf_counter()
+    subset = spread_indices(rows, LP_MAX_ROWS // 2)
+    while True:
+        left = None if time_limit is None else time_limit - (time.perf_counter() - t0)
+        if left is not None and left <= 0:
+            raise _Undecided("time limit")
+        c = _lp_margin_rows(An[subset], left)
+        if c is None:
+            return None
+        margins = An @ c
+        missed = np.flatnonzero(~(margins > 0))
+        if not missed.size:
+            return c
+        if subset.size >= 4 * LP_MAX_ROWS:
+            raise _Undecided(f"a direction of {subset.size} of the {rows} rows misses others")
+        add = missed[smallest(margins[missed], LP_MAX_ROWS // 2)]
+        subset = np.union1d(subset, add)
+
+
+def _lp_margin_rows(An: Array, time_limit: float | None = None) -> Array | None:
     """max s  s.t.  An c >= s, -1 <= c <= 1 (HiGHS through SciPy).
 
     Dual simplex first, capped at 2 iterations per row and column: it needs fewer
@@ -778,16 +818,18 @@ def _lp_margin(An: Array, time_limit: float | None = None) -> Array | None:
                       bounds=[(-1, 1)] * k + [(None, 1)], method=method, options=opts)
         if res.status not in (1, 4):
             break
-    if res.status in (1, 4):  # iteration / time limit, numerical trouble: no verdict
+    if res.status != 0:
+        # iteration / time limit, numerical trouble; "infeasible" or "unbounded" too,
+        # which this LP (c = 0, s = 0 meets every row; s <= 1) never is: no verdict
         raise _Undecided(res.message)
-    if res.status != 0 or res.x[-1] <= 0:
+    if res.x[-1] <= 0:
         # c = 0 is the optimum. The row duals y >= 0 (sum 1) bound every margin:
         # min_i (An c)_i <= y' An c <= ||An' y||_1 for |c| <= 1. Only a small bound
         # is a verdict: HiGHS stops at 0 within its tolerances (1e-7) and left
         # bounds of 1e-9..1e-7 where the rows had a pole-free fit (thermocouple
         # table at a 5e-4 floor, (10, 10) on 200 rows: 9.5e-8; clean
         # infeasibilities there: 1e-17..1e-14).
-        if res.status == 0 and margin_bound(An, res.ineqlin.marginals) > LP_CERTIFICATE_TOL:
+        if margin_bound(An, res.ineqlin.marginals) > LP_CERTIFICATE_TOL:
             raise _Undecided("LP optimum 0 without a tight dual certificate")
         return None
     return np.asarray(res.x[:k])
