@@ -418,9 +418,8 @@ def test_tall_margin_lps_are_solved_on_subsets_with_the_same_verdicts(monkeypatc
     monkeypatch.setattr(qp, "_lp_margin_rows", spy)
     rng = np.random.default_rng(7)
     rows, k = 3000, 6
-    d = np.array([1.0, 0, 0, 0, 0, 0])
     x = rng.normal(size=(rows, k))
-    x[:, 0] = np.abs(x[:, 0]) * 0.02 + 1e-3  # a thin cone around d
+    x[:, 0] = np.abs(x[:, 0]) * 0.02 + 1e-3  # a thin cone around the first axis
     An = x / np.linalg.norm(x, axis=1)[:, None]
     c = qp._lp_margin(An)
     assert c is not None and np.min(An @ c) > 0

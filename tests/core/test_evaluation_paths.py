@@ -73,6 +73,28 @@ def test_a_space_evaluates_in_chunks_with_the_values_of_one_product() -> None:
     assert space.evaluate(x[:0], c).shape == (0,)
 
 
+@pytest.mark.parametrize("index_set", ["total", "tensor"])
+def test_a_space_builds_its_design_in_chunks_with_the_same_entries(index_set: str) -> None:
+    """An n-D design is built by chunks of points (bounded temporaries): each entry
+    is the product of the same one-variable values as the whole-matrix form."""
+    from ratfit.core.bases import _EVAL_CHUNK
+
+    space = PolynomialSpace("legendre", np.array([[0.0, 2.0], [-1.0, 3.0], [1.0, 5.0]]),
+                            index_set)
+    rng = np.random.default_rng(2)
+    x = rng.uniform([0, -1, 1], [2, 3, 5], (2 * _EVAL_CHUNK + 77, 3))
+    count = 30
+    t = space.to_window(x)
+    idx = space.indices(count)
+    deg = int(idx.max())
+    ref = space.family.vander(t[:, 0], deg)[:, idx[:, 0]].copy()
+    for k in (1, 2):
+        ref *= space.family.vander(t[:, k], deg)[:, idx[:, k]]
+    got = space.design(x, count)
+    assert got.shape == (x.shape[0], count)
+    np.testing.assert_array_equal(got, ref)
+
+
 def test_seed_form_row_norms_without_a_stored_cumulative_sum() -> None:
     """The seed's form computes |A(n, m)|'s row norms from B by chunks, the running
     sum of B^2 along each row (no second N x k array): the numbers a stored
