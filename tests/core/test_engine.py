@@ -433,3 +433,25 @@ def test_tall_margin_lps_are_solved_on_subsets_with_the_same_verdicts(monkeypatc
     sizes.clear()
     # the certificate is found once rows 1700 and 2500 have both joined the subset
     assert qp._lp_margin(bad) is None and len(sizes) >= 2
+
+
+def test_a_subset_direction_missing_only_its_own_rows_goes_to_the_sign_test(monkeypatch):
+    """A subset's direction that misses only rows already in the subset (met to the
+    LP's tolerance) is handed back once, for the caller's sign test: no endless loop."""
+    from ratfit.core import qp
+    from ratfit.core.systems import spread_indices
+
+    monkeypatch.setattr(qp, "LP_MAX_ROWS", 200)
+    rows = 1000
+    An = np.tile([1.0, 0.0], (rows, 1))
+    first = int(spread_indices(rows, 100)[0])
+    An[first] = [-1.0, 0.0]  # the only row a direction along the first axis misses
+    calls = []
+
+    def fake(A, *a, **k):
+        calls.append(A.shape[0])
+        return np.array([1.0, 0.0])
+
+    monkeypatch.setattr(qp, "_lp_margin_rows", fake)
+    c = qp._lp_margin(An)
+    assert calls == [100] and np.array_equal(c, [1.0, 0.0])
