@@ -634,6 +634,7 @@ class _Screen:
         self.D, self.band = D, band
         self.samples = np.zeros(0, dtype=np.int64)
         self.P, self.Q = np.zeros((0, D.n)), np.zeros((0, D.m))
+        self.rows = np.arange(band.n_data, band.count)  # the positivity rows
         self.add(samples)
 
     def add(self, samples: NDArray[np.int64]) -> None:
