@@ -81,9 +81,7 @@ class _Design:
         self._recent: list[tuple[bytes, tuple[Array, Array]]] = []
         self._norms: tuple[Array, Array] | None = None
         self._q_mean: Array | None = None
-        k = self.n + self.m
-        # every block's two arrays, each aligned to 64 bytes
-        self.store.reserve(8 * (self.N * k + 16 * len(self.starts)))
+        self.store.reserve(self.N * (self.n + self.m), len(self.starts))
 
     def block(self, i: int) -> tuple[Array, Array]:
         """(P, Q) at the points of block ``i``."""
@@ -466,6 +464,10 @@ def _r_factor(M: Array) -> Array:
     return np.asarray(np.linalg.qr(M, mode="r"), dtype=np.float64)
 
 
+# which samples: every one (slice(None)) or some (sorted indices)
+_Samples = slice | NDArray[np.int64]
+
+
 class _BandRows:
     """The rows of the polish's band, G c >= h: per point i the lower row
     (P_i, -lo_i Q_i) / |.| and the upper row (-P_i, hi_i Q_i) / |.| (2N rows, never
@@ -522,18 +524,27 @@ class _BandRows:
         h[g_r] = self.h_grid[idx[g_r] - D]
         return out, h
 
-    def data_residuals(self, pa: Array, qb: Array) -> Array:
-        """G c at the 2N band rows, from p = P a and q = Q b at every point."""
-        return np.concatenate([(pa - self.lo_in * qb) / self.s_lo,
-                               (self.hi_in * qb - pa) / self.s_hi])
+    def data_residuals(self, pa: Array, qb: Array, at: _Samples = slice(None)) -> Array:
+        """G c at the band rows (lower, then upper) of the samples ``at`` (every
+        sample by default), from p = P a and q = Q b there."""
+        return np.concatenate([(pa - self.lo_in[at] * qb) / self.s_lo[at],
+                               (self.hi_in[at] * qb - pa) / self.s_hi[at]])
 
-    def residuals(self, c: Array, pa: Array, qb: Array) -> Array:
-        """G c - h at every row (band, q floor, positivity)."""
-        parts = [self.data_residuals(pa, qb)]
+    def residuals(self, c: Array, pa: Array, qb: Array, at: _Samples = slice(None)) -> Array:
+        """G c - h at the data rows of the samples ``at`` (band, q floor) and at every
+        positivity row, in the order of :meth:`row_indices`."""
+        parts = [self.data_residuals(pa, qb, at)]
         if self.q_floor is not None:
             parts.append(qb - self.q_floor)
         parts.append(self.grid @ c - self.h_grid)
         return np.concatenate(parts)
+
+    def row_indices(self, samples: NDArray[np.int64]) -> NDArray[np.int64]:
+        """The rows of the samples ``samples`` (lower, upper, q floor), then every
+        positivity row."""
+        N = self.N
+        parts = [samples, samples + N] + ([samples + 2 * N] if self.q_floor is not None else [])
+        return np.concatenate(parts + [np.arange(self.n_data, self.count)])
 
 
 # Large data: the active-set rounds check the samples most likely to bind (the
@@ -576,13 +587,14 @@ def _solve_band(D: _Design, lo: Array, hi: Array, qp: QPStep, tau: float,
 
     def check(c: Array, at: _Screen | None) -> tuple[NDArray[np.int64], Array, Array]:
         """Rows checked, their G c - h, and which of them are missed (below)."""
+        sel: _Samples
         if at is None:
             pa, qb = D.values(c)
-            rows, res = np.arange(band.count), band.residuals(c, pa, qb)
-            sel: slice | NDArray[np.int64] = slice(None)
+            rows, sel = np.arange(band.count), slice(None)
         else:
             pa, qb = at.values(c)
-            rows, res, sel = at.rows, at.residuals(c, pa, qb), at.samples
+            rows, sel = at.rows, at.samples
+        res = band.residuals(c, pa, qb, sel)
         # missed: the value itself lands in the outer half of the cut (or, at tau = 0,
         # outside the segment by more than 1e-9 of its width); a positivity row by
         # more than 1e-9. A row met to rounding is not missed: with q over six decades
@@ -634,7 +646,7 @@ class _Screen:
         self.D, self.band = D, band
         self.samples = np.zeros(0, dtype=np.int64)
         self.P, self.Q = np.zeros((0, D.n)), np.zeros((0, D.m))
-        self.rows = np.arange(band.n_data, band.count)  # the positivity rows
+        self.rows = band.row_indices(self.samples)  # the positivity rows
         self.add(samples)
 
     def add(self, samples: NDArray[np.int64]) -> None:
@@ -646,18 +658,7 @@ class _Screen:
         self.samples = np.concatenate([self.samples, fresh])[order]
         self.P = np.vstack([self.P, P])[order]
         self.Q = np.vstack([self.Q, Q])[order]
-        N, S = self.D.N, self.samples
-        parts = [S, S + N] + ([S + 2 * N] if self.band.q_floor is not None else [])
-        self.rows = np.concatenate(parts + [np.arange(self.band.n_data, self.band.count)])
+        self.rows = self.band.row_indices(self.samples)
 
     def values(self, c: Array) -> tuple[Array, Array]:
         return self.P @ c[:self.D.n], self.Q @ c[self.D.n:]
-
-    def residuals(self, c: Array, pa: Array, qb: Array) -> Array:
-        """G c - h at :attr:`rows`."""
-        b, S = self.band, self.samples
-        parts = [(pa - b.lo_in[S] * qb) / b.s_lo[S], (b.hi_in[S] * qb - pa) / b.s_hi[S]]
-        if b.q_floor is not None:
-            parts.append(qb - b.q_floor)
-        parts.append(b.grid @ c - b.h_grid)
-        return np.concatenate(parts)

@@ -98,9 +98,11 @@ class _ChunkStore:
         self.nbytes = 0
         self.used = 0  # floats of buf filled
 
-    def reserve(self, nbytes: int) -> None:
-        """Ask the budget for ``nbytes`` (what every chunk needs) once."""
-        if self.buf is None and nbytes > 0:
+    def reserve(self, floats: int, chunks: int) -> None:
+        """Ask the budget once for what ``chunks`` pairs of arrays of ``floats`` numbers
+        in all need, with room to align each array."""
+        nbytes = 8 * (floats + 2 * _ALIGN * (chunks + 1))
+        if self.buf is None and floats > 0:
             grant = _DESIGN_BUDGET.take(nbytes)
             self.nbytes = grant
             self.buf = np.empty(grant // 8) if grant else np.zeros(0)
@@ -1186,9 +1188,8 @@ class ArnoldiSystem:
         squares = self._norms is None  # the squares are only needed once
         uu, vv = (np.empty(N), np.empty(N)) if squares else (np.zeros(0), np.zeros(0))
         store = self._store
-        # every chunk's floats, with room to align each (what the budget grants of it)
-        chunks = -(-N // _CHUNK)
-        store.reserve(8 * (N * (self.n + self.m) + 2 * _ALIGN * (chunks + 1)))
+        # every chunk's floats (what the budget grants of it)
+        store.reserve(N * (self.n + self.m), -(-N // _CHUNK))
         for i, start in enumerate(range(0, N, _CHUNK)):
             stop = min(start + _CHUNK, N)
             pair = store.chunks.get(i)
