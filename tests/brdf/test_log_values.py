@@ -1,5 +1,6 @@
 """BRDF fits of log values (`brdf fit --values log`, ``fit_brdf(values="log")``): the fit
-is exp(p / q), so it is positive by construction; q > 0 is proved as for any fit, every
+is exp(p / q), so it is positive by construction; q > 0 is proved as for any fit (and
+p / q below a ceiling: tests/brdf/test_log_ceiling.py), every
 sample's value segment is met by exp(p / q) itself, and every evaluator (the Python API,
 `brdf eval`, the C and Python exports) computes the same exp(p / q)."""
 
@@ -62,12 +63,12 @@ def test_a_log_fit_meets_every_value_segment_with_exp_p_over_q(fitted):
     assert "least-squares polish: relative RMSE" in fitter.results_[0].message
 
 
-def test_a_log_fit_proves_q_alone_and_says_why(fitted, tmp_path):
+def test_a_log_fit_proves_q_and_its_ceiling_and_says_why(fitted, tmp_path):
     _, (fitter, _seg, meta) = fitted
     proof = fitter.proofs_[0]
     assert proof.proved and proof.values == "log"
-    assert "exp(p/q) > 0" in proof.summary()
-    assert meta["proof"][0]["values"] == "log" and meta["proof"][0]["p_margin"] is None
+    assert "exp(p/q) > 0" in proof.summary() and "q - p >= 0 proved" in proof.summary()
+    assert meta["proof"][0]["values"] == "log" and meta["proof"][0]["p_margin"] > 0
     assert meta["proof"][0]["q_margin"] > 0
     path = tmp_path / "fit.json"
     save_brdf_fit(path, fitter.results_, meta)

@@ -161,6 +161,19 @@ RESEARCH_TOTAL_FACTOR = 2
 # the lower end of a log segment is at least this share of its upper end (a value of 0
 # is met as 1e-3 of the floor above it: exp(p / q) cannot reach 0)
 LOG_LOW = 1e-3
+#: A fit of log values, exp(p / q), is proved to stay at most this many times the largest
+#: upper end of its channel's segments everywhere it is evaluated (p / q <= C, C the log
+#: of that bound). exp(p / q) is positive by construction but otherwise bounded by
+#: nothing the samples say: default log fits of the Cornell files reached 1e71 (garnet_red
+#: G), 7e135 (B) and overflowed to inf (acryl_blue) between their samples, at a data peak
+#: of 30-740 1/sr.
+LOG_CEILING_FACTOR = 2.0
+# The search's and the polish's rows keep p / q this far (in log: 5 %) below the ceiling
+# at their points, the check and the proof hold it to the ceiling itself: a least-squares
+# fit that wants to rise past the box's samples (a lobe's grazing tail) otherwise touches
+# the ceiling at the points, crosses it between them, and is refused round after round (a
+# lambert+ggx lobe's log fit: no polish in 4 rounds).
+CEILING_ROW_MARGIN = 0.05
 
 
 def cos_theta_l(coords: ArrayLike, param: str) -> Array:
@@ -896,6 +909,13 @@ def log_segments(seg: Segments) -> Segments:
     return Segments(seg.x, np.log(lo), np.log(seg.hi), center, seg.names)
 
 
+def log_ceilings(seg: Segments) -> Array:
+    """Each channel's C of a fit of log values (value segments ``seg``): the log of
+    :data:`LOG_CEILING_FACTOR` times the channel's largest upper end."""
+    top = np.nanmax(np.where(np.isfinite(seg.hi), seg.hi, np.nan), axis=0)
+    return np.log(LOG_CEILING_FACTOR * np.asarray(top, dtype=float))
+
+
 def nonnegative_segments(seg: Segments) -> Segments:
     """Segments with lo raised to 0: a BRDF value is never negative, so a fit that
     goes below 0 at a sample (allowed by a wide absolute floor) is not a fit."""
@@ -1027,6 +1047,7 @@ class BRDFFitter(RationalFitter):
             # the search, the polish and the proof work on log values; the value
             # segments stay for the last check of exp(p / q) itself
             self._value_segments = segments
+            self._ceilings = log_ceilings(segments)
             segments = log_segments(segments)
         if not self._full_search:
             self._points: dict[int, list[Array]] = {}
@@ -1081,6 +1102,20 @@ class BRDFFitter(RationalFitter):
         finally:
             self._final_channels.discard(j)
 
+    def _ceiling(self, j: int) -> float | None:
+        """Channel ``j``'s C (a fit of log values: p / q <= C is kept and proved on the
+        evaluated region, :func:`log_ceilings`), else None."""
+        if self.value_form != "log":
+            return None
+        return float(self._ceilings[j])
+
+    def _row_ceiling(self, j: int) -> float | None:
+        """The ceiling the search's and the polish's rows keep at their points:
+        :data:`CEILING_ROW_MARGIN` under channel ``j``'s, so that a fit is not refused
+        for crossing it between them."""
+        top = self._ceiling(j)
+        return None if top is None else top - CEILING_ROW_MARGIN
+
     def _values_checked(self, res: FitResult, j: int) -> FitResult:
         """A verified fit of log values checked as its values: exp(p / q), as every
         evaluator computes it, inside every value segment (the log segments' check
@@ -1129,6 +1164,7 @@ class BRDFFitter(RationalFitter):
         again._points = {0: list(self._points_of(j))}
         if self.value_form == "log":  # ``seg`` holds the log values already
             again._value_segments = self._value_segments.channel(j)
+            again._ceilings = self._ceilings[j:j + 1]
         again._fit_segments(seg.channel(j))
         out = again.results_[0]
         if not out.success:
@@ -1168,7 +1204,7 @@ class BRDFFitter(RationalFitter):
                 fam = rf.to_family()
                 ver = verify(fam, seg, channel=j, box_check=False)
                 proof = prove_validity(fam, self.parametrization, keep=self.used_coords,
-                                       values=self.value_form)
+                                       values=self.value_form, ceiling=self._ceiling(j))
                 self.__dict__.setdefault("_proofs", {})[id(fam)] = proof
                 self._checks[id(fam)] = self._checks.get(id(rf))
                 if ver.n_violations == 0 and np.isfinite(ver.linf) and proof.proved:
@@ -1236,7 +1272,8 @@ class BRDFFitter(RationalFitter):
             cand = polish_fit(rf, seg, j, weights=self._polish_weights(seg, j),
                               positive_at=pts, solver=self.solver,
                               numerator=self.value_form == "linear",
-                              deadline=deadline, method=method,
+                              ceiling=self._row_ceiling(j), deadline=deadline,
+                              method=method,
                               repair=repair, work=work)
             if cand is None:
                 return None
@@ -1359,7 +1396,8 @@ class BRDFFitter(RationalFitter):
         if grid.size == 0:
             return system
         return _valid_rows(system, space.to_window(grid),
-                           numerator=self.physical and self.value_form == "linear")
+                           numerator=self.physical and self.value_form == "linear",
+                           ceiling=self._row_ceiling(j) if self.physical else None)
 
     def _valid_grid_for(self, domain: ArrayLike) -> Array | None:
         dom = np.asarray(domain, dtype=float)
@@ -1388,7 +1426,8 @@ class BRDFFitter(RationalFitter):
         if rf.space.dim == 1 and ver.poles_in_domain:
             return ver
         keep = self.used_coords
-        chk = check_validity(rf, self.parametrization, keep=keep, values=self.value_form)
+        chk = check_validity(rf, self.parametrization, keep=keep, values=self.value_form,
+                             ceiling=self._ceiling(j))
         if chk is None:  # nothing says what is valid: the plain box check decides
             return ver if box_checked else verify(rf, seg, channel=j)
         if chk.valid:
@@ -1398,6 +1437,7 @@ class BRDFFitter(RationalFitter):
             # the full proof (:meth:`_proved`), which alone makes it a success.
             final = self._final_proof or j in self._final_channels
             proof = prove_validity(rf, self.parametrization, keep=keep, values=self.value_form,
+                                   ceiling=self._ceiling(j),
                                    max_boxes=40_000 if final else SEARCH_PROOF_BOXES)
             self.__dict__.setdefault("_proofs", {})[id(rf)] = proof
             if not proof.proved and (final or proof.refuted):
@@ -1445,9 +1485,11 @@ class _BRDFSystems:
         return self.fitter._split_system(space, seg, j, n, m, like=like)
 
 
-def _valid_rows(base: ArnoldiSystem, t_grid: Array, numerator: bool = True) -> AppendedRows:
-    """``base`` plus, per valid configuration g, the row q(g) / |psi(g)| >= delta and
-    (``numerator``) the row p(g) / |phi(g)| >= delta.
+def _valid_rows(base: ArnoldiSystem, t_grid: Array, numerator: bool = True,
+                ceiling: float | None = None) -> AppendedRows:
+    """``base`` plus, per valid configuration g, the row q(g) / |psi(g)| >= delta,
+    (``numerator``) the row p(g) / |phi(g)| >= delta and (``ceiling`` C, a fit of log
+    values) the row (C q(g) - p(g)) / |(-phi(g), C psi(g))| >= delta: p / q <= C.
 
     The grid counts as points, so :func:`~ratfit.core.qp.solve_fixed` always works
     on an active set that starts from the data's rows and adds grid rows where they
@@ -1459,10 +1501,17 @@ def _valid_rows(base: ArnoldiSystem, t_grid: Array, numerator: bool = True) -> A
             return d / np.linalg.norm(d, axis=1)[:, None]
         return LazyRows(make, len(t_grid))
 
+    def bound() -> Array:
+        assert ceiling is not None
+        d = np.hstack([-base.p_basis.design(t_grid, base.n, window=True),
+                       ceiling * base.q_basis.design(t_grid, base.m, window=True)])
+        return d / np.linalg.norm(d, axis=1)[:, None]
+
     # built when a candidate reaches the grid (an infeasible split never does)
     return AppendedRows(
         base, base.n, base.m, psi=unit(base.q_basis, base.m),
         phi=unit(base.p_basis, base.n) if numerator else None,
+        chi=None if ceiling is None else LazyRows(bound, len(t_grid)),
         start_active=False, extra_points=len(t_grid))
 
 

@@ -24,6 +24,7 @@ Two uses:
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable
 from dataclasses import dataclass
 
@@ -178,9 +179,11 @@ class ValidityCheck:
 def check_validity(rf: RationalFunction, param: str, domain: ArrayLike | None = None,
                    points: int = 150_000, starts: int = 24,
                    keep: ArrayLike | None = None,
-                   values: str = "linear") -> ValidityCheck | None:
+                   values: str = "linear", ceiling: float | None = None
+                   ) -> ValidityCheck | None:
     """Dense, adaptive check that q > 0 and p >= 0 on valid configurations in ``domain``
-    (q > 0 alone for ``values="log"``: the fit is exp(p / q), > 0 wherever q > 0).
+    (for ``values="log"``, where the fit is exp(p / q) > 0 wherever q > 0: q > 0 and,
+    with a ``ceiling`` C, C q - p >= 0, so that the value is at most exp(C)).
 
     A grid of direction pairs offset from :func:`configurations`' (so the
     constraint grid proves nothing here), then a compass search in angle space
@@ -199,9 +202,11 @@ def check_validity(rf: RationalFunction, param: str, domain: ArrayLike | None = 
         return ValidityCheck(True, 0, np.inf, np.inf, np.zeros((0, dom.shape[0])),
                              "no direction pair in the domain")
     q = rf.denominator(c)
-    numerator = values != "log"  # a fit of log values has no condition on p
-    # without it p counts as positive wherever q is
-    pv = rf.numerator(c) if numerator else np.abs(q)
+    second = _second(rf, values, ceiling)
+    numerator = second is not None
+    # without a condition on p (a log fit without a ceiling) p counts as positive
+    # wherever q is
+    pv = second(c) if second is not None else np.abs(q)
     sign = 1.0 if np.sum(q > 0) >= np.sum(q < 0) else -1.0
     q, pv = sign * q, sign * pv
     qs = float(np.max(np.abs(q))) or 1.0
@@ -214,21 +219,22 @@ def check_validity(rf: RationalFunction, param: str, domain: ArrayLike | None = 
     for use_q, vals in searches:
         pick = np.argsort(vals)[: min(starts, len(vals))]
         pts, best = _compass(rf, p, dom, a[pick], vals[pick], step, sign, qs,
-                             qs * rs, use_q=use_q, cols=cols)
+                             qs * rs, use_q=use_q, cols=cols, second=second)
         checked += pts
         found.append(best)
     bad = np.concatenate(found) if found else np.zeros((0, dom.shape[0]))
     qa, pa = q, pv  # the grid's values, plus those of the bad points found
     if len(bad):
         qb = sign * rf.denominator(bad)
-        pb = sign * rf.numerator(bad) if numerator else np.abs(qb)
+        pb = sign * second(bad) if second is not None else np.abs(qb)
         keep_b = (qb <= 0) | (pb < 0) | ~np.isfinite(qb) | ~np.isfinite(pb)
         bad, qb, pb = bad[keep_b], qb[keep_b], pb[keep_b]
         qa, pa = np.concatenate([q, qb]), np.concatenate([pv, pb])
     with np.errstate(divide="ignore", invalid="ignore"):
         ra = pa / qa
     min_q = float(np.min(qa) / qs)
-    # (a fit of log values has no r to bound: exp(p / q) > 0 wherever q > 0)
+    # (a fit of log values has no r to bound below: exp(p / q) > 0 wherever q > 0;
+    # with a ceiling, r here is C - p / q)
     min_r = float(np.nanmin(np.where(qa > 0, ra, -np.inf)) / rs) if numerator else np.inf
     valid = len(bad) == 0 and min_q > 0 and min_r >= 0 and bool(np.all(np.isfinite(qa)))
     return ValidityCheck(valid, checked, min_q, min_r, bad,
@@ -255,11 +261,25 @@ def _check_grid(p: Parametrization, dom: Array, cols: NDArray[np.int64],
     return hit
 
 
+def _second(rf: RationalFunction, values: str, ceiling: float | None
+            ) -> Callable[[Array], Array] | None:
+    """The polynomial a valid fit keeps >= 0 beside q: p (values), C q - p (log values
+    under a ceiling C: exp(p / q) <= exp(C)), or None (log values without one)."""
+    if values != "log":
+        return rf.numerator
+    if ceiling is None:
+        return None
+    c_top = float(ceiling)
+    return lambda x: c_top * rf.denominator(x) - rf.numerator(x)
+
+
 def _compass(rf: RationalFunction, p: Parametrization, dom: Array, a0: Array, v0: Array,
              step: Array, sign: float, qs: float, ps: float, use_q: bool,
-             cols: NDArray[np.int64]) -> tuple[int, Array]:
-    """Lower q (or p) from each start by compass moves in angle space; returns
-    (evaluations, coordinates of the non-positive values reached)."""
+             cols: NDArray[np.int64],
+             second: Callable[[Array], Array] | None = None) -> tuple[int, Array]:
+    """Lower q (or ``second``, p by default) from each start by compass moves in angle
+    space; returns (evaluations, coordinates of the non-positive values reached)."""
+    second = rf.numerator if second is None else second
     b = _bounds(a0.shape[1])
     a, v = a0.copy(), v0.copy()
     k = a.shape[1]
@@ -273,7 +293,7 @@ def _compass(rf: RationalFunction, p: Parametrization, dom: Array, a0: Array, v0
         ok = _inside(c, dom)
         c = np.clip(np.nan_to_num(c), dom[:, 0], dom[:, 1])
         q = sign * rf.denominator(c)
-        pv = sign * rf.numerator(c)
+        pv = sign * second(c)
         f = q / qs if use_q else pv / ps
         return np.where(ok & np.isfinite(f), f, np.inf), c
 
@@ -318,6 +338,9 @@ class ValidityProof:
     bad_points: Array  # coordinates to constrain where the proof failed
     # "log": the fit's value is exp(p / q), positive wherever q is; p's sign is not needed
     values: str = "linear"
+    # log values: C with C q - p >= 0 proved (``p`` holds that proof), so the value is at
+    # most exp(C); None: no upper bound (files written before it)
+    ceiling: float | None = None
 
     @property
     def refuted(self) -> bool:
@@ -326,6 +349,10 @@ class ValidityProof:
 
     def summary(self) -> str:
         state = "proved" if self.proved else "NOT PROVED"
+        if self.values == "log" and self.ceiling is not None:
+            return (f"{state}: q > 0 {self.q.summary()}; the value exp(p/q) > 0 wherever "
+                    f"q > 0, and at most {_value_bound(self.ceiling):.6g}: "
+                    f"{self.ceiling:.6g} q - p >= 0 {self.p.summary()}; region: {self.region}")
         if self.values == "log":
             return (f"{state}: q > 0 {self.q.summary()}; the value exp(p/q) > 0 wherever "
                     f"q > 0; region: {self.region}")
@@ -333,6 +360,13 @@ class ValidityProof:
                 f"region: {self.region}")
 
     def to_dict(self) -> dict[str, object]:
+        if self.values == "log" and self.ceiling is not None:
+            return {"proved": self.proved, "method": self.q.method, "region": self.region,
+                    "q_margin": self.q.margin, "p_margin": self.p.margin, "values": "log",
+                    "ceiling": self.ceiling,
+                    "value_bound": (_value_bound(self.ceiling)
+                                    if np.isfinite(_value_bound(self.ceiling)) else None),
+                    "boxes": self.q.boxes + self.p.boxes}
         if self.values == "log":
             return {"proved": self.proved, "method": self.q.method, "region": self.region,
                     "q_margin": self.q.margin, "p_margin": None, "values": "log",
@@ -340,6 +374,11 @@ class ValidityProof:
         return {"proved": self.proved, "method": self.q.method, "region": self.region,
                 "q_margin": self.q.margin, "p_margin": self.p.margin,
                 "boxes": self.q.boxes + self.p.boxes}
+
+
+def _value_bound(ceiling: float) -> float:
+    """exp(C), inf past float64's range."""
+    return math.exp(ceiling) if ceiling < 709.0 else math.inf
 
 
 def _rusin_excluder(space: PolynomialSpace) -> Callable[[Array, Array], NDArray[np.bool_]]:
@@ -421,10 +460,12 @@ _EXCLUDERS = {"RUSIN_TH_TD_PD": _rusin_excluder, "RUSIN_TH_TD_SYM": _sym_exclude
 
 
 def prove_validity(rf: RationalFunction, param: str, keep: ArrayLike | None = None,
-                   max_boxes: int = 40_000, values: str = "linear") -> ValidityProof:
+                   max_boxes: int = 40_000, values: str = "linear",
+                   ceiling: float | None = None) -> ValidityProof:
     """Prove q > 0 and p >= 0 of ``rf`` (in its family form) on the evaluated region,
     examining at most ``max_boxes`` pieces for each of q and p. ``values="log"``: the
-    fit's value is exp(p / q), so q > 0 alone is proved."""
+    fit's value is exp(p / q), positive wherever q > 0; with a ``ceiling`` C, C q - p > 0
+    is proved too (the value stays below exp(C)), else q > 0 alone."""
     from ratfit.core.positivity import prove_positive
 
     space = rf.space
@@ -441,7 +482,17 @@ def prove_validity(rf: RationalFunction, param: str, keep: ArrayLike | None = No
         region = "the domain box less pieces no pair of directions reaches"
     fam_name = space.family.name
     qp = prove_positive(sign * Q, fam_name, strict=True, exclude=exclude, max_boxes=max_boxes)
-    if values == "log":
+    if values == "log" and ceiling is not None:
+        # C q - p in graded coefficients (p and q share the graded order; the shorter is
+        # padded), so the proof is about the stored numbers; strict: a margin above the
+        # rounding of this one subtraction
+        k = max(len(fam.p), len(fam.q))
+        bound = np.zeros(k)
+        bound[:len(fam.q)] += float(ceiling) * np.asarray(fam.q, dtype=float)
+        bound[:len(fam.p)] -= np.asarray(fam.p, dtype=float)
+        pp = prove_positive(sign * space.tensor_coef(bound), fam_name, strict=True,
+                            exclude=exclude, max_boxes=max_boxes)
+    elif values == "log":
         pp = SignProof(True, np.inf, 1.0, False, np.zeros((0, space.dim)), 0,
                        "not needed: exp(p/q) > 0")
     else:
@@ -449,7 +500,8 @@ def prove_validity(rf: RationalFunction, param: str, keep: ArrayLike | None = No
                             max_boxes=max_boxes)
     pts = [space.from_window(s.points) for s in (qp, pp) if len(s.points)]
     bad = np.concatenate(pts) if pts else np.zeros((0, space.dim))
-    return ValidityProof(qp.proved and pp.proved, qp, pp, region, bad, values)
+    return ValidityProof(qp.proved and pp.proved, qp, pp, region, bad, values,
+                         None if values != "log" or ceiling is None else float(ceiling))
 
 
 def reprove_saved(saved: object) -> bool | None:
@@ -468,5 +520,14 @@ def reprove_saved(saved: object) -> bool | None:
     keep = None if not dropped else np.setdiff1d(np.arange(p.dim),
                                                 [int(k) for k in dropped])
     values = str(meta.get("values", "linear"))
-    return all(prove_validity(ch.rational, p.name, keep=keep, values=values).proved
-               for ch in channels)
+    proofs = meta.get("proof") or []
+    return all(prove_validity(ch.rational, p.name, keep=keep, values=values,
+                              ceiling=_stored_ceiling(proofs, j)).proved
+               for j, ch in enumerate(channels))
+
+
+def _stored_ceiling(proofs: object, j: int) -> float | None:
+    """The ceiling channel ``j``'s stored proof states (a fit of log values), if any."""
+    entry = proofs[j] if isinstance(proofs, list) and j < len(proofs) else None
+    value = entry.get("ceiling") if isinstance(entry, dict) else None
+    return float(value) if isinstance(value, (int, float)) and np.isfinite(value) else None

@@ -159,6 +159,7 @@ def polish_fit(
     repair: bool = False,
     work: WorkBudget | None = None,
     numerator: bool = True,
+    ceiling: float | None = None,
 ) -> RationalFunction | None:
     """The least-squares fit of the same size as ``rf`` whose values stay in the
     inner part (a fraction ``tau`` of each width off both ends) of every segment.
@@ -169,7 +170,8 @@ def polish_fit(
 
     ``weights`` (N,) weight each point's error (default 1: plain RMSE).
     ``positive_at`` (G, d) are points (original coordinates) where q > 0 and
-    (``numerator``) p >= 0 are also required. Returns None when the QP fails; the result is
+    (``numerator``) p >= 0, or (``ceiling`` C, a fit of log values) p / q <= C, are also
+    required. Returns None when the QP fails; the result is
     a candidate, to be verified by the caller. ``work`` counts each QP solve
     (each active-set round of each cut-off); once it is exhausted the polish gives
     up (None) before the next solve: a count, so where it stops does not depend on
@@ -194,7 +196,7 @@ def polish_fit(
     try:
         return _polish(rf, design, lo, hi, y, weights, positive_at, tau, solver,
                        max_rounds, start_rows, deadline, method, iterations, repair, work,
-                       numerator)
+                       numerator, ceiling)
     finally:
         design.close()
 
@@ -203,7 +205,7 @@ def _polish(rf: RationalFunction, D: _Design, lo: Array, hi: Array, y: Array,
             weights: ArrayLike | None, positive_at: ArrayLike | None, tau: float,
             solver: str, max_rounds: int, start_rows: int, deadline: float | None,
             method: str, iterations: int, repair: bool, work: WorkBudget | None,
-            numerator: bool) -> RationalFunction | None:
+            numerator: bool, ceiling: float | None = None) -> RationalFunction | None:
     """:func:`polish_fit` on the samples' basis values ``D``."""
     n = rf.n
     c = np.concatenate([rf.p, rf.q])
@@ -215,7 +217,7 @@ def _polish(rf: RationalFunction, D: _Design, lo: Array, hi: Array, y: Array,
     if np.any(q0 / scale <= 0):
         return None
     w = np.ones(D.N) if weights is None else np.asarray(weights, dtype=float).ravel()
-    grid, p_rows = _positivity_rows(rf, positive_at, numerator)
+    grid, p_rows = _positivity_rows(rf, positive_at, numerator, ceiling)
     methods = {"auto": ("qp", "socp"), "qp": ("qp",), "socp": ("socp",)}[method]
     if importlib.util.find_spec("clarabel") is None:
         methods = tuple(x for x in methods if x != "socp") or ("qp",)
@@ -351,22 +353,29 @@ def _polish_pass(D: _Design, lo: Array, hi: Array, y: Array, w: Array, c: Array,
 
 
 def _positivity_rows(rf: RationalFunction, positive_at: ArrayLike | None,
-                     numerator: bool = True) -> tuple[Array, Array]:
-    """Rows G c >= h keeping q > 0 and (``numerator``) p >= 0 at ``positive_at``, and 1 / (the norm
-    each p row was divided by), 0 on q rows; built once for every pass and cut-off.
-    (q > 0 at the data is part of :class:`_BandRows`.)"""
+                     numerator: bool = True, ceiling: float | None = None
+                     ) -> tuple[Array, Array]:
+    """Rows G c >= h keeping q > 0, (``numerator``) p >= 0 and (``ceiling`` C) C q - p >= 0
+    at ``positive_at``, and 1 / (the norm each p or bound row was divided by), 0 on q rows;
+    built once for every pass and cut-off. (q > 0 at the data is part of :class:`_BandRows`.)"""
     k = rf.n + rf.m
     pts = None if positive_at is None else np.asarray(positive_at, dtype=float)
     if pts is None or not len(pts):
         return np.zeros((0, k)), np.zeros(0)
     Pg, Qg = _design(rf, pts)
-    if not numerator:
-        return np.hstack([np.zeros_like(Pg), Qg]), np.zeros(len(Qg))
-    pn = np.linalg.norm(Pg, axis=1)
-    pn[pn == 0] = 1.0
-    grid = np.vstack([np.hstack([np.zeros_like(Pg), Qg]),
-                      np.hstack([Pg / pn[:, None], np.zeros_like(Qg)])])
-    return grid, np.concatenate([np.zeros(len(Qg)), 1.0 / pn])
+    q_rows = np.hstack([np.zeros_like(Pg), Qg])
+    bounds = []
+    if numerator:
+        bounds.append(np.hstack([Pg, np.zeros_like(Qg)]))
+    if ceiling is not None:
+        bounds.append(np.hstack([-Pg, ceiling * Qg]))
+    if not bounds:
+        return q_rows, np.zeros(len(Qg))
+    rows = np.vstack(bounds)
+    norms = np.linalg.norm(rows, axis=1)
+    norms[norms == 0] = 1.0
+    return (np.vstack([q_rows, rows / norms[:, None]]),
+            np.concatenate([np.zeros(len(Qg)), 1.0 / norms]))
 
 
 QPStep = Callable[[Array, Array, Array], "Array | None"]

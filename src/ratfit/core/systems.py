@@ -113,10 +113,11 @@ class _BuiltOnRead:
 
 
 class AppendedRows:
-    """``base`` plus unit rows on one coefficient block each: ``q(z) / ||psi(z)|| >= delta``
-    (rows of ``psi``, acting on c[n:]) and ``p(z) / ||phi(z)|| >= delta`` (``phi``, on c[:n]).
+    """``base`` plus unit rows: ``q(z) / ||psi(z)|| >= delta`` (rows of ``psi``, acting on
+    c[n:]), ``p(z) / ||phi(z)|| >= delta`` (``phi``, on c[:n]) and rows ``chi`` on the whole
+    of c (a bound on p / q, such as C q(z) - p(z) >= 0 for a fit of log values).
 
-    Rows ``0 .. base.n_rows - 1`` are the base's, then the q rows, then the p rows.
+    Rows ``0 .. base.n_rows - 1`` are the base's, then the q rows, the p rows, the chi rows.
     ``start_active``: the active set of :func:`~ratfit.core.qp.solve_fixed` starts
     with every appended row (rows that exist because a candidate needed them) or
     with the base's rows only (a dense grid, mostly slack, joins where violated).
@@ -125,8 +126,8 @@ class AppendedRows:
     """
 
     def __init__(self, base: RowSystem, n: int, m: int, psi: Array | LazyRows | None = None,
-                 phi: Array | LazyRows | None = None, *, start_active: bool = True,
-                 extra_points: int = 0) -> None:
+                 phi: Array | LazyRows | None = None, *, chi: Array | LazyRows | None = None,
+                 start_active: bool = True, extra_points: int = 0) -> None:
         self.base = base
         self.n, self.m = int(n), int(m)
         self.space = base.space
@@ -134,17 +135,20 @@ class AppendedRows:
         self.t = base.t
         self.psi = np.zeros((0, self.m)) if psi is None else psi
         self.phi = np.zeros((0, self.n)) if phi is None else phi
+        self.chi = np.zeros((0, self.n + self.m)) if chi is None else chi
         self.start_active = start_active
 
     # psi and phi may be LazyRows: built on first use (a split decided on the data's
     # rows alone, as every infeasible one is, never evaluates a large grid)
     psi = _BuiltOnRead()
     phi = _BuiltOnRead()
-    _psi: Array | LazyRows  # what psi and phi hold until first read
+    chi = _BuiltOnRead()
+    _psi: Array | LazyRows  # what psi, phi and chi hold until first read
     _phi: Array | LazyRows
+    _chi: Array | LazyRows
 
-    def _counts(self) -> tuple[int, int]:
-        return len(self._psi), len(self._phi)
+    def _counts(self) -> tuple[int, int, int]:
+        return len(self._psi), len(self._phi), len(self._chi)
 
     @property
     def n_rows(self) -> int:
@@ -163,7 +167,7 @@ class AppendedRows:
         return self.base.conditioning(n, m)
 
     def rows(self, n: int, m: int, ridx: NDArray[np.int64] | None = None) -> Array:
-        nb, nq = self.base.n_rows, self._counts()[0]
+        nb, (nq, n_p, _nc) = self.base.n_rows, self._counts()
         if ridx is None:
             ridx = np.arange(self.n_rows)
         out = np.zeros((ridx.size, n + m))
@@ -173,17 +177,23 @@ class AppendedRows:
         qrow = (ridx >= nb) & (ridx < nb + nq)
         if qrow.any():
             out[qrow, n:] = self.psi[ridx[qrow] - nb]
-        prow = ridx >= nb + nq
+        prow = (ridx >= nb + nq) & (ridx < nb + nq + n_p)
         if prow.any():
             out[prow, :n] = self.phi[ridx[prow] - nb - nq]
+        crow = ridx >= nb + nq + n_p
+        if crow.any():
+            out[crow] = self.chi[ridx[crow] - nb - nq - n_p]
         return out
 
     def row_norms(self, n: int, m: int) -> Array:
         return np.concatenate([self.base.row_norms(n, m), np.ones(sum(self._counts()))])
 
     def residuals(self, n: int, m: int, c: Array) -> Array:
-        return np.concatenate([self.base.residuals(n, m, c), self.psi @ c[n:],
-                               self.phi @ c[:n]])
+        return np.concatenate([self.base.residuals(n, m, c), self._appended(n, c)])
+
+    def _appended(self, n: int, c: Array) -> Array:
+        """The appended rows' values at c: q rows, p rows, chi rows."""
+        return np.concatenate([self.psi @ c[n:], self.phi @ c[:n], self.chi @ c])
 
     def screen(self, n: int, m: int, c: Array) -> Iterator[tuple[NDArray[np.int64], Array, Array]]:
         """Stages of rows to check before a full pass (see solve_fixed): the base's
@@ -200,8 +210,7 @@ class AppendedRows:
             yield np.arange(nb), self.base.residuals(n, m, c), self.base.row_norms(n, m)
         nb, extra = self.base.n_rows, sum(self._counts())
         if extra:
-            yield (nb + np.arange(extra), np.concatenate([self.psi @ c[n:], self.phi @ c[:n]]),
-                   np.ones(extra))
+            yield nb + np.arange(extra), self._appended(n, c), np.ones(extra)
 
     def initial_rows(self, size: int) -> NDArray[np.int64]:
         first = self.base.initial_rows(size)

@@ -730,8 +730,18 @@ def scope_text(saved: SavedFit, reproved: bool | None = None) -> str:
         if (reproved is not False and isinstance(proofs, list)
                 and len(proofs) == len(saved.channels)
                 and all(isinstance(p, dict) and p.get("proved") is True for p in proofs)):
-            return ("Verified at every sample of its data; q > 0 and p >= 0 proved where it "
-                    "is evaluated (Bernstein bounds, as the fit file records).")
+            if saved.values != "log":
+                return ("Verified at every sample of its data; q > 0 and p >= 0 proved where "
+                        "it is evaluated (Bernstein bounds, as the fit file records).")
+            bounds = [p.get("value_bound") for p in proofs]
+            if all(isinstance(b, (int, float)) and not isinstance(b, bool) for b in bounds):
+                return ("Verified at every sample of its data; q > 0 and exp(p/q) <= "
+                        + " / ".join(f"{float(b):.4g}" for b in bounds)
+                        + " (per channel) proved where it is evaluated (Bernstein bounds, as "
+                          "the fit file records).")
+            return ("Verified at every sample of its data; q > 0 proved where it is "
+                    "evaluated (Bernstein bounds, as the fit file records), so exp(p/q) is "
+                    "positive there; no upper bound is proved.")
         return ("Verified at every sample of its data; that the denominator has no zero "
                 "between the samples was checked on a dense grid, not proved.")
     return ("Verified on its data; no pole on the domain (proved in exact arithmetic when "
