@@ -39,8 +39,9 @@ NOISE_FLOOR = 1e-3
 #: 0.059 to 0.78 at a peak of 591 and leaves garnet_red's diffuse colour as wrong.
 POLISH_ERRORS = ("auto", "absolute", "relative")
 #: What a BRDF fit's p / q approximates: the values ("linear": the fit is p / q, proved
-#: q > 0 and p >= 0) or their logarithms ("log": the fit is exp(p / q), proved q > 0;
-#: positive by construction, and a relative segment width is one log width at every value).
+#: q > 0 and p >= 0) or their logarithms ("log": the fit is exp(p / q), proved q > 0 and
+#: p / q <= C, :data:`~ratfit.brdf.fitter.LOG_CEILING_FACTOR`; positive by construction,
+#: and a relative segment width is one log width at every value).
 #: "auto": log values for a full table of every cell (MERL) in the half-vector frame,
 #: else linear (:func:`ratfit.brdf.fitter.resolve_values`).
 VALUES = ("auto", *VALUE_FORMS)
