@@ -573,9 +573,9 @@ def resolve_values(values: str, ds: Dataset, frame: str,
     take 44 coefficients a channel against 48-51, median / p95 relative error 1.5 /
     4.1 % against 1.4-2.0 / 3.9-4.3 %, 84 s against 346 s. In RUSIN_TH_TD_PD log values
     were no smaller (83-90 a channel after 11 min). On scattered measurements (Cornell,
-    5-fold cross-validation) a log fit that misses an unseen near-mirror sample misses
-    by a factor (cayman R held-out RMSE 839 against 18.4): linear there. A shared
-    denominator fits p_c / q (linear)."""
+    5-fold cross-validation, log fits under their ceiling) neither form predicts held-out
+    samples better (lower RMSE in 5 of 12 channels, lower relative RMSE in 6): linear
+    there. A shared denominator fits p_c / q (linear)."""
     if values != "auto":
         return values
     log = is_table(ds) and frame == HALF_VECTOR and not shared_denominator
