@@ -36,19 +36,25 @@ def _dense_extremes(rf, a: float, b: float, n: int = 200_001) -> tuple[float, fl
 
 
 def test_thurber_excursion_is_reported_and_warned(nist, tmp_path):
-    """Thurber at --dt 1e-4 verifies with 37 coefficients and reaches about -8.8e13
-    between x = 2.047 and 2.2 where the data are near 1450."""
+    """Thurber at --dt 1e-4 verifies with 37 coefficients and passes near a pole between
+    x = 2.047 and 2.2 where the data are near 1450: -8.8e13 on one machine, +2.6e11 on
+    another (the pole's side of the gap depends on the last bits of the fit)."""
     data = nist("Thurber")
     out = tmp_path / "fit.json"
     report = fit_file(FitRequest(data, dt=1e-4, output=out))
     assert report.success
     (exc,) = report.excursions
     assert exc.gap == (2.047, 2.2)
-    assert exc.value < -1e13 and exc.excursion == pytest.approx(exc.data_range[0] - exc.value)
+    lo, hi = exc.data_range
+    assert abs(exc.value) > 1e10 and hi < 2000
+    assert exc.excursion == pytest.approx(lo - exc.value if exc.value < lo else exc.value - hi)
     rf = report.results[0].rational
-    low, _ = _dense_extremes(rf, 2.047, 2.2)
+    low, high = _dense_extremes(rf, 2.047, 2.2)
     # the search finds the extreme a 200 000-point grid finds, or a more extreme one
-    assert exc.low <= low * (1 - 1e-9)
+    if exc.value < lo:
+        assert exc.low <= low * (1 - 1e-9)
+    else:
+        assert exc.high >= high * (1 - 1e-9)
     assert any("leaves the data's range" in m and f"{exc.beyond_range:.3g}" in m
                for m in report.messages)
     prov = load_fit(out).provenance["between"]

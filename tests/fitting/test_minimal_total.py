@@ -91,17 +91,24 @@ def test_the_seed_matrix_screen_agrees_with_the_weighted_form():
     """The walk's infeasible splits are decided by a certificate on the channel's seed
     matrix before any weighted system is built; each of them is infeasible in the
     weighted form too, the feasible answer gets no certificate there, and a split
-    whose seed matrix is ill-conditioned is not screened at all."""
+    whose seed matrix is ill-conditioned is not screened at all. (Which splits lie at
+    the screen's thresholds depends on the machine's rounding: on one machine every
+    infeasible split of the walk was screened, on another all but (14, 12).)"""
     from ratfit.demos.addendum import addendum_segments
 
     seg = addendum_segments()
     r = RationalFitter(jobs=1).fit(seg).result_
-    screened = [(h["n"], h["m"]) for h in r.history
-                if h["status"] == "infeasible" and h["formulation"] == "basis"]
-    assert len(screened) == sum(h["status"] == "infeasible" for h in r.history) >= 30
+    infeasible = [(h["n"], h["m"], h["formulation"]) for h in r.history
+                  if h["status"] == "infeasible"]
+    screened = [(n, m) for n, m, form in infeasible if form == "basis"]
+    assert len(screened) >= 30 and len(infeasible) - len(screened) <= 2
     f = RationalFitter(jobs=1)
     space = f.prepare(seg)
     engine = SearchEngine(f.options_, f.search_parts(space, seg), space, seg, 0)
+    for n, m, form in infeasible:  # the screen declined every split it left
+        if form != "basis":
+            pre = qpmod.certified_infeasible(engine.system, n, m)
+            assert pre is None or pre.status == "failed", (n, m)
     for split in screened[::4]:
         att, _ = qpmod.solve_pole_free(engine.split_system(*split), *split, cuts=engine.cuts)
         assert att.status == "infeasible", (split, att.messages)
