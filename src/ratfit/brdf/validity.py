@@ -530,4 +530,6 @@ def _stored_ceiling(proofs: object, j: int) -> float | None:
     """The ceiling channel ``j``'s stored proof states (a fit of log values), if any."""
     entry = proofs[j] if isinstance(proofs, list) and j < len(proofs) else None
     value = entry.get("ceiling") if isinstance(entry, dict) else None
-    return float(value) if isinstance(value, (int, float)) and np.isfinite(value) else None
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not np.isfinite(value):
+        return None
+    return float(value)

@@ -733,10 +733,12 @@ def scope_text(saved: SavedFit, reproved: bool | None = None) -> str:
             if saved.values != "log":
                 return ("Verified at every sample of its data; q > 0 and p >= 0 proved where "
                         "it is evaluated (Bernstein bounds, as the fit file records).")
-            bounds = [p.get("value_bound") for p in proofs]
-            if all(isinstance(b, (int, float)) and not isinstance(b, bool) for b in bounds):
+            # the bound is exp of the ceiling the proof was made (and made again) with
+            tops = [p.get("ceiling") for p in proofs]
+            if all(isinstance(c, (int, float)) and not isinstance(c, bool)
+                   and np.isfinite(c) and c < 709.0 for c in tops):
                 return ("Verified at every sample of its data; q > 0 and exp(p/q) <= "
-                        + " / ".join(f"{float(b):.4g}" for b in bounds)
+                        + " / ".join(f"{np.exp(float(c)):.4g}" for c in tops)
                         + " (per channel) proved where it is evaluated (Bernstein bounds, as "
                           "the fit file records).")
             return ("Verified at every sample of its data; q > 0 proved where it is "
