@@ -8,7 +8,9 @@ renderer's material (``ratfit.render.FitMaterial.raw``, what the Mitsuba plugin 
 before its clamp at 0). Per channel it prints the smallest value of each, the count of
 negative or non-finite values, the largest relative difference of the C export and the
 material from ``eval_dirs``, the spread over phi_d at theta_h = 0 (an isotropic BRDF does
-not depend on phi_d there), the proof stored in the fit file, and the seconds each took.
+not depend on phi_d there), the proof stored in the fit file, the largest value
+``eval_dirs`` gave beside the upper bound the proof states (a fit of log values), and the
+seconds each took.
 
     python benchmarks/bench_validity.py FIT.json [FIT2.json ...] [--pairs 1000000]
 """
@@ -120,11 +122,15 @@ def main() -> None:
                 f"{np.max(np.abs(mat[:, j] - r) / scale):.1e}", f"{spread[j]:.1e}",
                 "yes" if pr and pr.get("proved") else "no",
                 f"{pr['q_margin']:.1e}" if pr else "-",
+                f"{np.max(r):.4g}",
+                f"{pr['value_bound']:.4g}" if pr and pr.get("value_bound") else "-",
                 f"{t_eval:.2f}/{t_c:.2f}/{t_mat:.2f}"])
     rep.table(f"{args.pairs} random pairs over the hemisphere (seed {args.seed})",
               ["fit", "ch", "min eval", "min C", "min plugin", "neg|nonfinite", "C vs eval",
-               "plugin vs eval", "phi_d spread th_h=0", "proved", "q margin",
-               "s eval/C/plugin"], rows)
+               "plugin vs eval", "phi_d spread th_h=0", "proved", "q margin", "max eval",
+               "proved bound", "s eval/C/plugin"], rows,
+              note="proved bound: the largest value the proof allows (fits of log values: "
+                   "exp(p/q) <= twice the largest segment end); '-': none stated.")
     rep.write()
 
 
