@@ -117,18 +117,17 @@ def main() -> None:
             pr = proofs[j] if j < len(proofs) else None
             rows.append([
                 f"{path.stem}", name, f"{np.min(r):.4g}", f"{np.min(cv[:, j]):.4g}",
-                f"{np.min(mat[:, j]):.4g}", str(bad),
+                f"{np.min(mat[:, j]):.4g}", str(bad), f"{np.max(r):.4g}",
+                f"{pr['value_bound']:.4g}" if pr and pr.get("value_bound") else "-",
                 f"{np.max(np.abs(cv[:, j] - r) / scale):.1e}",
                 f"{np.max(np.abs(mat[:, j] - r) / scale):.1e}", f"{spread[j]:.1e}",
                 "yes" if pr and pr.get("proved") else "no",
                 f"{pr['q_margin']:.1e}" if pr else "-",
-                f"{np.max(r):.4g}",
-                f"{pr['value_bound']:.4g}" if pr and pr.get("value_bound") else "-",
                 f"{t_eval:.2f}/{t_c:.2f}/{t_mat:.2f}"])
     rep.table(f"{args.pairs} random pairs over the hemisphere (seed {args.seed})",
-              ["fit", "ch", "min eval", "min C", "min plugin", "neg|nonfinite", "C vs eval",
-               "plugin vs eval", "phi_d spread th_h=0", "proved", "q margin", "max eval",
-               "proved bound", "s eval/C/plugin"], rows,
+              ["fit", "ch", "min eval", "min C", "min plugin", "neg|nonfinite", "max eval",
+               "proved bound", "C vs eval", "plugin vs eval", "phi_d spread th_h=0",
+               "proved", "q margin", "s eval/C/plugin"], rows,
               note="proved bound: the largest value the proof allows (fits of log values: "
                    "exp(p/q) <= twice the largest segment end); '-': none stated.")
     rep.write()
