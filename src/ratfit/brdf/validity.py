@@ -36,6 +36,7 @@ from ratfit.core.bases import PolynomialSpace
 from ratfit.core.positivity import SignProof
 from ratfit.core.rational import RationalFunction
 from ratfit.errors import InputError
+from ratfit.io.fitfile import proof_ceiling
 
 __all__ = [
     "ValidityCheck",
@@ -520,16 +521,9 @@ def reprove_saved(saved: object) -> bool | None:
     keep = None if not dropped else np.setdiff1d(np.arange(p.dim),
                                                 [int(k) for k in dropped])
     values = str(meta.get("values", "linear"))
-    proofs = meta.get("proof") or []
+    proofs = meta.get("proof")
+    entries = proofs if isinstance(proofs, list) else []
     return all(prove_validity(ch.rational, p.name, keep=keep, values=values,
-                              ceiling=_stored_ceiling(proofs, j)).proved
+                              ceiling=proof_ceiling(entries[j] if j < len(entries) else None)
+                              ).proved
                for j, ch in enumerate(channels))
-
-
-def _stored_ceiling(proofs: object, j: int) -> float | None:
-    """The ceiling channel ``j``'s stored proof states (a fit of log values), if any."""
-    entry = proofs[j] if isinstance(proofs, list) and j < len(proofs) else None
-    value = entry.get("ceiling") if isinstance(entry, dict) else None
-    if isinstance(value, bool) or not isinstance(value, (int, float)) or not np.isfinite(value):
-        return None
-    return float(value)

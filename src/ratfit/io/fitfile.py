@@ -36,7 +36,8 @@ from ratfit.errors import FileFormatError, InputError
 
 __all__ = [
     "FORMAT", "VERSION", "FitFileWarning", "SavedChannel", "SavedFit", "content_digest",
-    "fit_document", "load_fit", "save_fit", "scope_text", "subset_of", "trusting_edited",
+    "fit_document", "load_fit", "save_fit", "proof_ceiling", "scope_text", "subset_of",
+    "trusting_edited",
 ]
 
 FORMAT = "ratfit.fit"
@@ -710,6 +711,16 @@ def subset_of(saved: SavedFit) -> tuple[int, int] | None:
     return None
 
 
+def proof_ceiling(entry: object) -> float | None:
+    """The ceiling C one channel's stored proof entry states (a BRDF fit of log values:
+    C q - p >= 0 proved, so exp(p / q) <= exp(C)), or None where it states none (a file
+    from before the bound) or something that is not a finite number."""
+    value = entry.get("ceiling") if isinstance(entry, dict) else None
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not np.isfinite(value):
+        return None
+    return float(value)
+
+
 def scope_text(saved: SavedFit, reproved: bool | None = None) -> str:
     """What the verification of a sealed fit file covered, in one sentence.
 
@@ -734,11 +745,10 @@ def scope_text(saved: SavedFit, reproved: bool | None = None) -> str:
                 return ("Verified at every sample of its data; q > 0 and p >= 0 proved where "
                         "it is evaluated (Bernstein bounds, as the fit file records).")
             # the bound is exp of the ceiling the proof was made (and made again) with
-            tops = [p.get("ceiling") for p in proofs]
-            if all(isinstance(c, (int, float)) and not isinstance(c, bool)
-                   and np.isfinite(c) and c < 709.0 for c in tops):
+            tops = [proof_ceiling(p) for p in proofs]
+            if all(c is not None and c < 709.0 for c in tops):
                 return ("Verified at every sample of its data; q > 0 and exp(p/q) <= "
-                        + " / ".join(f"{np.exp(float(c)):.4g}" for c in tops)
+                        + " / ".join(f"{np.exp(c):.4g}" for c in tops if c is not None)
                         + " (per channel) proved where it is evaluated (Bernstein bounds, as "
                           "the fit file records).")
             return ("Verified at every sample of its data; q > 0 proved where it is "
