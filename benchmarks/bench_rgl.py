@@ -19,6 +19,10 @@ as such (no errors). ``--known`` runs first a material known in closed form, the
 Lambert + two GGX lobes of bench_merl.py, written and fitted the same way (issue 28:
 back within 5 % median and 25 % at the 95th percentile).
 
+Each material's first rows are the table itself, read back and looked up as MERL's
+reference reader does, at the same pairs: what the fit is given, as a renderer would use
+it. ``--table-only`` gives those rows alone (seconds a material, all 51 in minutes).
+
 ``--baseline SRC`` (the ``src`` folder of another checkout, e.g. main's) fits each table
 with that code too, in the same run, just before this code's fit: a second row per
 channel, the ratios of this code's seconds, CPU seconds (user + system of the fit's
@@ -83,16 +87,35 @@ def hemisphere(rng: np.random.Generator, n: int, zmin: float) -> np.ndarray:
 
 
 def errors(fit_path: Path, net, n_pairs: int) -> dict[str, np.ndarray]:
-    """(2, k) median and p95 relative errors per distribution name."""
+    """(2, k) median and p95 relative errors of the fit per distribution name."""
     from ratfit.brdf.fitter import load_brdf_fit
 
-    fit = load_brdf_fit(fit_path)
+    return pair_errors(load_brdf_fit(fit_path), net, n_pairs)
+
+
+class TableLookup:
+    """The MERL table a fit is given, read back and looked up as MERL's reference reader
+    does (each pair's cell, indices rounded down); a missing cell (its point below the
+    horizon) is 0, as a renderer that clamps the stored -1 sees it."""
+
+    def __init__(self, table: Path) -> None:
+        from ratfit.brdf.io import read_merl
+
+        self.merl = read_merl(table)
+
+    def eval_dirs(self, L: np.ndarray, V: np.ndarray) -> np.ndarray:
+        return np.nan_to_num(self.merl.lookup(L, V), nan=0.0)
+
+
+def pair_errors(model, net, n_pairs: int) -> dict[str, np.ndarray]:
+    """(2, k) median and p95 relative errors of ``model.eval_dirs`` against ``net``
+    per distribution name (the same seeded pairs for every model)."""
     out = {}
     for label, zmin in (("all", 0.0), ("cos>0.1", 0.1)):
         rng = np.random.default_rng(2026)
         L, V = hemisphere(rng, n_pairs, zmin), hemisphere(rng, n_pairs, zmin)
         y = net.eval_dirs(L, V)
-        f = fit.eval_dirs(L, V)
+        f = model.eval_dirs(L, V)
         rel = np.abs(f - y) / np.maximum(y, FLOOR)
         rel = np.where(np.isfinite(rel), rel, np.inf)
         out[label] = np.stack([np.median(rel, axis=0), np.percentile(rel, 95, axis=0)])
@@ -127,9 +150,10 @@ class KnownMaterial:
 
 def run_one(npz: Path | None, timeout: float, n_pairs: int,
             baseline: Path | None = None, fit_args: tuple[str, ...] = (),
-            baseline_args: tuple[str, ...] = ()) -> list[dict]:
-    """The material's fit by this code with ``fit_args``; with ``baseline`` (a src
-    folder) first by that code with ``baseline_args``, on the same table."""
+            baseline_args: tuple[str, ...] = (), fit: bool = True) -> list[dict]:
+    """The table's own lookup's errors, then the material's fit by this code with
+    ``fit_args``; with ``baseline`` (a src folder) first by that code with
+    ``baseline_args``, on the same table. ``fit`` False: the table's row alone."""
     from ratfit.brdf.io import merl_from_function, write_merl
     from ratfit.brdf.nbrdf import load_nbrdf
 
@@ -137,10 +161,14 @@ def run_one(npz: Path | None, timeout: float, n_pairs: int,
     with tempfile.TemporaryDirectory(prefix="bench_rgl_") as tmp:
         table = Path(tmp) / f"{net.name}.binary"
         write_merl(table, merl_from_function(net))
+        rows = [{"name": net.name, "code": "table", "rc": 0, "weights": net.n_weights,
+                 "errors": pair_errors(TableLookup(table), net, n_pairs)}]
+        if not fit:
+            return rows
         srcs = ([("baseline", baseline, baseline_args)] if baseline is not None else []) + [
             ("this", REPO / "src", fit_args)]
-        return [fit_one(net, table, Path(tmp) / f"fit_{label}.json", timeout, n_pairs, src,
-                        label, args) for label, src, args in srcs]
+        return rows + [fit_one(net, table, Path(tmp) / f"fit_{label}.json", timeout, n_pairs,
+                               src, label, args) for label, src, args in srcs]
 
 
 def fit_one(net, table: Path, out: Path, timeout: float, n_pairs: int, src: Path,
@@ -203,6 +231,8 @@ def main() -> None:
     ap.add_argument("--limit", type=int, help="at most this many materials")
     ap.add_argument("--timeout", type=float, default=400.0, help="seconds per fit")
     ap.add_argument("--pairs", type=int, default=100_000, help="random direction pairs")
+    ap.add_argument("--table-only", action="store_true",
+                    help="only the tables' own lookup errors (no fit: seconds a material)")
     ap.add_argument("--known", action="store_true",
                     help="first the closed-form Lambert + 2 GGX material of bench_merl.py")
     ap.add_argument("--baseline", type=Path, metavar="SRC",
@@ -234,21 +264,32 @@ def main() -> None:
 
     rep = report(args, __file__)
     compare = args.baseline is not None
-    header = ["material", *(["code"] if compare else []), "ch", "n+m", "med% all",
+    header = ["material", "of", "ch", "n+m", "med% all",
               "p95% all", "med% c>.1", "p95% c>.1", "s", "cpu s", "peak MB", "load",
               "verified"]
     rows = []
     ratios = []
-    met = 0
+    met = table_met = 0
     for npz in runs:
-        fits = run_one(npz, args.timeout, args.pairs, args.baseline, fit_args, base_args)
+        fits = run_one(npz, args.timeout, args.pairs, args.baseline, fit_args, base_args,
+                       fit=not args.table_only)
+        lookup, fits = fits[0], fits[1:]
+        e = lookup["errors"]
+        table_good = True
+        for c, ch in enumerate("RGB"):
+            med, p95 = e["all"][0, c], e["all"][1, c]
+            table_good = table_good and med < 0.05 and p95 < 0.25
+            rows.append([lookup["name"], "table", ch, "-", fmt_pct(med), fmt_pct(p95),
+                         fmt_pct(e["cos>0.1"][0, c]), fmt_pct(e["cos>0.1"][1, c]),
+                         "-", "-", "-", "-", "-"])
+        table_met += table_good and npz is not None
         for r in fits:
             ok_fit = r["rc"] == 0 and "errors" in r
             status = ("yes" if ok_fit else f"timeout {args.timeout:.0f} s" if r["rc"] is None
                       else f"no (exit {r['rc']})")
             print(f"{r['name']} ({r['code']}): {status}, {r['seconds']:.0f} s",
                   file=sys.stderr, flush=True)
-            code = [r["code"]] if compare else []
+            code = ["fit" if r["code"] == "this" else "baseline fit"]
             common = [f"{r['seconds']:.0f}", f"{r['cpu']:.0f}", f"{r['peak_mb']:.0f}",
                       f"{r['load']:.1f}"]
             if "errors" not in r:
@@ -273,8 +314,11 @@ def main() -> None:
                           f"{this['seconds'] / base['seconds']:.2f} s, "
                           f"{this['cpu'] / base['cpu']:.2f} cpu s, "
                           f"{this['peak_mb'] / base['peak_mb']:.2f} peak MB; {same}")
-    note = (f"{met} of {len(files)} materials verified with median < 5 % and p95 < 25 % (all "
-            f"pairs) in every channel and <= {MAX_NUMBERS} numbers.")
+    note = (f"The tables themselves (MERL's lookup): {table_met} of {len(files)} materials "
+            "with median < 5 % and p95 < 25 % (all pairs) in every channel.")
+    if not args.table_only:
+        note += (f" Fits: {met} of {len(files)} materials verified with median < 5 % and "
+                 f"p95 < 25 % (all pairs) in every channel and <= {MAX_NUMBERS} numbers.")
     if ratios:
         note += (f" Baseline: the code in {args.baseline}, run just before this code on the "
                  "same table. " + " ".join(ratios))
@@ -282,12 +326,20 @@ def main() -> None:
     if compare:
         what += " (baseline: " + " ".join(["`ratfit brdf fit TABLE -o fit.json",
                                            *base_args]) + "`)"
-    rep.table(f"{what if fit_args or base_args else 'default ' + what} on full MERL "
-              f"tables; timeout "
-              f"{args.timeout:.0f} s; {args.pairs} seeded pairs, L and V uniform on the "
-              f"hemisphere (all) or on the cap cos >= 0.1 (c>.1); rel = |f - y| / max(y, "
-              f"{FLOOR:g}); s: wall seconds of the fit's process, cpu s: its user + system "
-              "seconds, load: the 1-minute load average before it", header, rows, note=note)
+    if args.table_only:
+        title = ("the full MERL tables' own lookup (no fit): MERL's reader's cell of each "
+                 "pair (indices rounded down; a missing cell is 0)")
+        header, rows = header[:8], [r[:8] for r in rows]
+    else:
+        title = (f"{what if fit_args or base_args else 'default ' + what} on full MERL "
+                 f"tables; timeout {args.timeout:.0f} s; of: table = the MERL table the fit "
+                 "is given, looked up as MERL's reader does (each pair's cell, indices "
+                 "rounded down; a missing cell is 0), fit = its fit; s: wall seconds of the "
+                 "fit's process, cpu s: its user + system seconds, load: the 1-minute load "
+                 "average before it")
+    rep.table(f"{title}; {args.pairs} seeded pairs, L and V uniform on the hemisphere (all) "
+              f"or on the cap cos >= 0.1 (c>.1); rel = |f - y| / max(y, {FLOOR:g})",
+              header, rows, note=note)
     rep.write()
 
 
