@@ -107,6 +107,22 @@ def test_log_segments_keep_a_zero_value_inside_and_refuse_an_empty_one():
         log_segments(Segments(x[:2], np.zeros((2, 1)), np.array([[1.0], [0.0]])))
 
 
+def test_log_segments_keep_overlapping_segments_overlapping():
+    # one point measured twice (a MERL table's phi_d and pi - phi_d in the half-vector
+    # frame): [0, 4.3] and [0, 1.4e-3] share [0, 1.4e-3]; lower ends raised to 1e-3 of
+    # each one's own upper end were [4.3e-3, 4.3] and [1.4e-6, 1.4e-3], disjoint, and
+    # the search refused the data ("the segments of rows ... do not overlap")
+    x = np.array([[0.0], [0.0], [0.0], [1.0]])
+    lo = np.array([[0.0], [0.0], [1e-3], [1.0]])
+    hi = np.array([[4.3], [1.4e-3], [2e-3], [2.0]])
+    out = log_segments(Segments(x, lo, hi))
+    assert out.lo[:3].max() <= out.hi[:3].min()  # the three at x = 0 still share values
+    # the lower ends of the zeros: 1e-3 of the channel's smallest upper end
+    np.testing.assert_allclose(np.exp(out.lo[:2, 0]), [1.4e-6, 1.4e-6], rtol=1e-13)
+    np.testing.assert_allclose(np.exp(out.lo[2:, 0]), [1e-3, 1.0], rtol=1e-13)
+    np.testing.assert_allclose(np.exp(out.hi[:, 0]), hi[:, 0], rtol=1e-13)
+
+
 def test_a_fit_file_with_an_unknown_values_word_is_refused(fitted, tmp_path):
     _, (fitter, _seg, meta) = fitted
     path = tmp_path / "fit.json"

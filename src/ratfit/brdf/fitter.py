@@ -158,8 +158,8 @@ RESEARCH_WORK_SHARE = 0.25
 # rows every rejection adds: cayman's R searched again up to 100 galloped to (50, 50),
 # where one split's active set reached 32 000 of 147 000 rows (minutes of DAQP a solve).
 RESEARCH_TOTAL_FACTOR = 2
-# the lower end of a log segment is at least this share of its upper end (a value of 0
-# is met as 1e-3 of the floor above it: exp(p / q) cannot reach 0)
+# the lower end of a log segment is at least this share of its channel's smallest upper
+# end (a value of 0 is met as 1e-3 of the lowest floor: exp(p / q) cannot reach 0)
 LOG_LOW = 1e-3
 #: A fit of log values, exp(p / q), is proved to stay at most this many times the largest
 #: upper end of its channel's segments everywhere it is evaluated (p / q <= C, C the log
@@ -895,16 +895,18 @@ def subset_status(points: int, of: int) -> str:
 
 def log_segments(seg: Segments) -> Segments:
     """The segments of log values: [log lo, log hi], with lo raised to
-    :data:`LOG_LOW` of hi first (a value of 0, or a floor far above lo, would put the
-    lower end at minus infinity; exp(p / q) is never 0). A fit inside them is inside the
-    value segments, and positive by construction."""
+    :data:`LOG_LOW` of the channel's smallest hi first (a value of 0 would put the lower
+    end at minus infinity; exp(p / q) is never 0). A fit inside them is inside the value
+    segments, and positive by construction. One raised end per channel keeps segments
+    that share values sharing them: raised to 1e-3 of each one's own hi, [0, 4.3] and
+    [0, 1.4e-3] (one point measured twice) became disjoint."""
     if np.any(~(seg.hi > 0)):
         i, j = (int(v) for v in np.argwhere(~(seg.hi > 0))[0])
         raise InputError(
             f"a fit of log values needs every segment's upper end above 0 (row {i}, "
             f"channel {seg.names[j]}: hi = {float(seg.hi[i, j])!r}); give the segments "
             "a floor (--abs-width)")
-    lo = np.maximum(seg.lo, LOG_LOW * seg.hi)  # > 0: hi > 0
+    lo = np.maximum(seg.lo, LOG_LOW * np.min(seg.hi, axis=0))  # > 0: hi > 0
     center = None if seg.y is None else np.log(np.clip(seg.y, lo, seg.hi))
     return Segments(seg.x, np.log(lo), np.log(seg.hi), center, seg.names)
 
