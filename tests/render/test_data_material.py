@@ -91,3 +91,27 @@ def test_from_pairs_refuses_too_few_or_mismatched_rows():
         DataMaterial.from_pairs(L, L, np.ones((3, 3)))
     with pytest.raises(InputError, match="at least 4 pairs"):
         DataMaterial.from_pairs(np.vstack([L, L]), np.vstack([L, L]), np.ones((5, 3)))
+
+
+def test_the_data_sampler_of_a_cornell_file_finishes(shared_data):
+    # quadprog looped forever inside one of these CDF QPs (516 x 13, acryl_blue's data
+    # sampler, measured 2026-11-27): a render must end. In a child process, so that a
+    # solver stuck in C fails the test instead of hanging the suite.
+    import subprocess
+    import sys
+
+    code = (
+        "import sys\n"
+        "from ratfit.render.material import DataMaterial\n"
+        "from ratfit.render.sampler import HalfVectorSampler\n"
+        "s = HalfVectorSampler().fit(DataMaterial(sys.argv[1]))\n"
+        "print(s.fits_, s.fallbacks_)\n"
+    )
+    path = shared_data / "cornell" / "acryl_blue.brdf"
+    try:
+        out = subprocess.run([sys.executable, "-c", code, str(path)], capture_output=True,
+                             text=True, timeout=180, check=True)
+    except subprocess.TimeoutExpired:
+        pytest.fail("the data sampler of acryl_blue did not finish in 180 s")
+    fits, fallbacks = (int(v) for v in out.stdout.split())
+    assert fits == 117 and fallbacks == 0  # 9 incidence nodes x (1 + 12) CDFs, all verified

@@ -20,6 +20,7 @@ from typing import Any
 import click
 import numpy as np
 
+from ratfit.cdf.monotone import CDF_SOLVER
 from ratfit.cli.main import (
     EXIT_NO_FIT,
     _progress,
@@ -153,7 +154,7 @@ def _one_domain(pairs: list[list[float]] | None) -> tuple[float, float] | None:
               help="K extra monotone constraint points, uniform on the domain.")
 @click.option("--form", type=click.Choice(["two-row", "max"]), default="two-row",
               show_default=True, help="Derivative constraints: seed eq. 3 or eq. 5.")
-@fit_options(exclude=("index_set", "formulation"),
+@fit_options(exclude=("index_set", "formulation"), defaults={"solver": CDF_SOLVER},
              helps={"domain": "Domain of the CDF, LO HI (default: the data range)."})
 @click.option("--channel", type=int, default=0, show_default=True,
               help="Column of a table with several output channels.")
