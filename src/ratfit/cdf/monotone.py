@@ -406,13 +406,14 @@ def verify_cdf(
 
 
 # ----------------------------------------------------------------------------- the fitter
-#: :class:`MonotoneFitter`'s options: the fitter's, a "basis" formulation by default,
-#: and the derivative rows' own.
-#: DAQP first: quadprog looped forever inside one call on a CDF QP of 516 x 13 (the data
-#: sampler of acryl_blue's render; DAQP: 1.3 ms, Clarabel 0.14 s, both optimal), as it did
-#: on a BRDF QP (:data:`~ratfit.brdf.options.BRDF_SOLVER`). A renderer's sampler fits
-#: ~117 such CDFs per material.
+#: The QP solver of CDF fits: DAQP first. quadprog looped forever inside one call on a
+#: CDF QP of 516 x 13 (the data sampler of acryl_blue's render; DAQP: 1.3 ms, Clarabel
+#: 0.14 s, both optimal), as it did on a BRDF QP
+#: (:data:`~ratfit.brdf.options.BRDF_SOLVER`). A renderer's sampler fits ~117 such CDFs
+#: per material.
 CDF_SOLVER = first_available(("daqp", "quadprog"))
+#: :class:`MonotoneFitter`'s options: the fitter's, a "basis" formulation and
+#: :data:`CDF_SOLVER` by default, and the derivative rows' own.
 MONOTONE_OPTIONS = extend_spec(
     FIT_OPTIONS,
     Option("form", "choice", "two-row", "Derivative rows: two per point, or one (max form).",

@@ -108,11 +108,10 @@ class DataMaterial:
     frame, in which an isotropic BRDF's highlight lies at theta_h = 0 whatever the
     incidence): H's elevation on MERL's square-root scale and D with phi_d folded into
     [0, pi/2] (reciprocity moves phi_d by pi, mirror symmetry sends it to -phi_d). A
-    query takes the
-    inverse-distance-squared average of its ``k`` nearest samples there (exact at a
-    sample; samples at one embedded point are averaged): scattered goniometer data has
-    no grid for multilinear interpolation, and scipy's Delaunay-based interpolation is
-    very slow on such degenerate point sets.
+    query takes the inverse-distance-squared average of its ``k`` nearest samples there
+    (exact at a sample; samples at one embedded point are averaged): scattered
+    goniometer data has no grid for multilinear interpolation, and scipy's
+    Delaunay-based interpolation is very slow on such degenerate point sets.
 
     Why this frame, measured (``benchmarks/bench_data_interp.py``: 5-fold, each Cornell
     file's held-out samples predicted from the others): against the same average over
