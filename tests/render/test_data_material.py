@@ -45,7 +45,7 @@ def test_a_highlight_between_two_incidence_angles_stays_at_the_mirror(goniometer
     # direction: neighbours in the half-vector frame are the measured mirror samples
     # (theta_h = 0), not samples of the nearby lights near this camera, which lie off
     # their own highlights. Measured: 0.81-1.06 of the truth (median 0.92); neighbours
-    # in the directions' own angles gave 0.71-0.84 (median 0.73).
+    # in the directions' own angles gave 0.71-0.84 (median 0.72).
     ratios = []
     for deg in (10.0, 20.0, 30.0, 40.0, 50.0, 60.0, 70.0):
         L, V = in_plane(np.radians(deg)), mirror(np.radians(deg))
