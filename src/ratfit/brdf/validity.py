@@ -24,7 +24,6 @@ Two uses:
 
 from __future__ import annotations
 
-import math
 from collections.abc import Callable
 from dataclasses import dataclass
 
@@ -36,7 +35,7 @@ from ratfit.core.bases import PolynomialSpace
 from ratfit.core.positivity import SignProof
 from ratfit.core.rational import RationalFunction
 from ratfit.errors import InputError
-from ratfit.io.fitfile import proof_ceiling
+from ratfit.io.fitfile import ceiling_bound, proof_ceiling
 
 __all__ = [
     "ValidityCheck",
@@ -352,7 +351,7 @@ class ValidityProof:
         state = "proved" if self.proved else "NOT PROVED"
         if self.values == "log" and self.ceiling is not None:
             return (f"{state}: q > 0 {self.q.summary()}; the value exp(p/q) > 0 wherever "
-                    f"q > 0, and at most {_value_bound(self.ceiling):.6g}: "
+                    f"q > 0, and at most {ceiling_bound(self.ceiling):.6g}: "
                     f"{self.ceiling:.6g} q - p >= 0 {self.p.summary()}; region: {self.region}")
         if self.values == "log":
             return (f"{state}: q > 0 {self.q.summary()}; the value exp(p/q) > 0 wherever "
@@ -365,8 +364,8 @@ class ValidityProof:
             return {"proved": self.proved, "method": self.q.method, "region": self.region,
                     "q_margin": self.q.margin, "p_margin": self.p.margin, "values": "log",
                     "ceiling": self.ceiling,
-                    "value_bound": (_value_bound(self.ceiling)
-                                    if np.isfinite(_value_bound(self.ceiling)) else None),
+                    "value_bound": (ceiling_bound(self.ceiling)
+                                    if np.isfinite(ceiling_bound(self.ceiling)) else None),
                     "boxes": self.q.boxes + self.p.boxes}
         if self.values == "log":
             return {"proved": self.proved, "method": self.q.method, "region": self.region,
@@ -375,11 +374,6 @@ class ValidityProof:
         return {"proved": self.proved, "method": self.q.method, "region": self.region,
                 "q_margin": self.q.margin, "p_margin": self.p.margin,
                 "boxes": self.q.boxes + self.p.boxes}
-
-
-def _value_bound(ceiling: float) -> float:
-    """exp(C), inf past float64's range."""
-    return math.exp(ceiling) if ceiling < 709.0 else math.inf
 
 
 def _rusin_excluder(space: PolynomialSpace) -> Callable[[Array, Array], NDArray[np.bool_]]:

@@ -13,6 +13,7 @@ import contextvars
 import datetime as _dt
 import hashlib
 import json
+import math
 import os
 import platform
 import re
@@ -36,8 +37,8 @@ from ratfit.errors import FileFormatError, InputError
 
 __all__ = [
     "FORMAT", "VERSION", "FitFileWarning", "SavedChannel", "SavedFit", "content_digest",
-    "fit_document", "load_fit", "save_fit", "proof_ceiling", "scope_text", "subset_of",
-    "trusting_edited",
+    "ceiling_bound", "fit_document", "load_fit", "save_fit", "proof_ceiling", "scope_text",
+    "subset_of", "trusting_edited",
 ]
 
 FORMAT = "ratfit.fit"
@@ -721,6 +722,12 @@ def proof_ceiling(entry: object) -> float | None:
     return float(value)
 
 
+def ceiling_bound(ceiling: float) -> float:
+    """exp(C), the largest value a proved ceiling C allows a fit of log values; inf past
+    float64's range."""
+    return math.exp(ceiling) if ceiling < 709.0 else math.inf
+
+
 def scope_text(saved: SavedFit, reproved: bool | None = None) -> str:
     """What the verification of a sealed fit file covered, in one sentence.
 
@@ -746,9 +753,10 @@ def scope_text(saved: SavedFit, reproved: bool | None = None) -> str:
                         "it is evaluated (Bernstein bounds, as the fit file records).")
             # the bound is exp of the ceiling the proof was made (and made again) with
             tops = [proof_ceiling(p) for p in proofs]
-            if all(c is not None and c < 709.0 for c in tops):
+            bounds = [ceiling_bound(c) for c in tops if c is not None]
+            if len(bounds) == len(tops) and all(math.isfinite(v) for v in bounds):
                 return ("Verified at every sample of its data; q > 0 and exp(p/q) <= "
-                        + " / ".join(f"{np.exp(c):.4g}" for c in tops if c is not None)
+                        + " / ".join(f"{v:.4g}" for v in bounds)
                         + " (per channel) proved where it is evaluated (Bernstein bounds, as "
                           "the fit file records).")
             return ("Verified at every sample of its data; q > 0 proved where it is "
