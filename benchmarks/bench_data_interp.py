@@ -50,18 +50,6 @@ def baseline_class():
     return DirectionAngles
 
 
-def samples(path: Path) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Each sample's (L, V, RGB) above the horizon, as ``ratfit render --data`` reads it."""
-    from ratfit.brdf.io import brdf_dataset
-    from ratfit.brdf.parametrizations import get_parametrization
-    from ratfit.render.material import _dirs_of
-
-    ds = brdf_dataset(path, None, color="rgb")
-    L, V, above = _dirs_of(get_parametrization(str(ds.meta["param_in"])), ds.x)
-    keep = above & np.all(np.isfinite(ds.y), axis=1)
-    return L[keep], V[keep], np.maximum(ds.y[keep], 0.0)
-
-
 def held_out(cls, L: np.ndarray, V: np.ndarray, y: np.ndarray) -> np.ndarray:
     """Each sample predicted by ``cls`` from the folds without it."""
     fold = np.random.default_rng(0).permutation(len(y)) % FOLDS
@@ -80,7 +68,7 @@ def errors(pred: np.ndarray, y: np.ndarray, cos_l: np.ndarray) -> np.ndarray:
 
 
 def main() -> None:
-    from ratfit.render.material import DataMaterial
+    from ratfit.render.material import DataMaterial, measured_pairs
 
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--data-root", type=Path, default=DEFAULT_DATA,
@@ -95,7 +83,8 @@ def main() -> None:
         path = args.data_root / "cornell" / f"{name}.brdf"
         if not path.exists():
             sys.exit(f"error: {path} not found (--data-root)")
-        L, V, y = samples(path)
+        L, V, y, _ = measured_pairs(path)
+        y = np.maximum(y, 0.0)  # as the render's interpolation takes them
         this, was = (errors(held_out(c, L, V, y), y, L[:, 2]) for c in (DataMaterial, base))
         for c, ch in enumerate("RGB"):
             cells = [f"{this[i, c]:.4g} / {was[i, c]:.4g} ({this[i, c] / was[i, c]:.2f})"

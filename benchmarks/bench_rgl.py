@@ -161,7 +161,7 @@ def run_one(npz: Path | None, timeout: float, n_pairs: int,
     with tempfile.TemporaryDirectory(prefix="bench_rgl_") as tmp:
         table = Path(tmp) / f"{net.name}.binary"
         write_merl(table, merl_from_function(net))
-        rows = [{"name": net.name, "code": "table", "rc": 0, "weights": net.n_weights,
+        rows = [{"name": net.name, "code": "table",
                  "errors": pair_errors(TableLookup(table), net, n_pairs)}]
         if not fit:
             return rows

@@ -21,7 +21,7 @@ from ratfit.brdf.fitter import BRDFFit, load_brdf_fit
 from ratfit.errors import InputError
 
 __all__ = ["AnalyticMaterial", "DataMaterial", "FitMaterial", "ModelMaterial", "material_of",
-           "unit_rows"]
+           "measured_pairs", "unit_rows"]
 
 Array = NDArray[np.float64]
 
@@ -101,6 +101,27 @@ def _dirs_of(p, coords: Array) -> tuple[Array, Array, NDArray[np.bool_]]:
     return L, V, ok
 
 
+def measured_pairs(path: str | os.PathLike[str]) -> tuple[Array, Array, Array, int]:
+    """A measured BRDF file's samples as a renderer sees them: (L, V, RGB) of the pairs
+    above the horizon with finite values, and how many samples put a direction below
+    it (left out). Refused: a file without values, or whose coordinates do not fix both
+    directions up to a rotation."""
+    from ratfit.brdf.io import brdf_dataset
+    from ratfit.brdf.parametrizations import get_parametrization
+
+    ds = brdf_dataset(path, None, color="rgb")
+    if ds.y is None:
+        raise InputError(f"{path}: no BRDF values")
+    p = get_parametrization(str(ds.meta.get("param_in")))
+    if p.invariant not in ("full", "isotropic"):
+        raise InputError(f"{path}: data in {p.name} does not fix both directions up to a "
+                         "rotation; it cannot be rendered as measured")
+    L, V, above = _dirs_of(p, ds.x)
+    y = _rgb(ds.y, f"{path}")
+    keep = above & np.all(np.isfinite(y), axis=1)
+    return L[keep], V[keep], y[keep], int((~above).sum())
+
+
 class DataMaterial:
     """Measured BRDF samples, interpolated for rendering.
 
@@ -123,27 +144,14 @@ class DataMaterial:
     """
 
     def __init__(self, path: str | os.PathLike[str], *, k: int = 8) -> None:
-        from ratfit.brdf.io import brdf_dataset
-        from ratfit.brdf.parametrizations import get_parametrization
-
-        ds = brdf_dataset(path, None, color="rgb")
-        if ds.y is None:
-            raise InputError(f"{path}: no BRDF values")
+        L, V, y, below = measured_pairs(path)
         self.name = Path(str(path)).stem
-        param = str(ds.meta.get("param_in"))
-        p = get_parametrization(param)
-        if p.invariant not in ("full", "isotropic"):
-            raise InputError(f"{path}: data in {p.name} does not fix both directions up to a "
-                             "rotation; it cannot be rendered as measured")
-        L, V, above = _dirs_of(p, ds.x)
-        y = _rgb(ds.y, f"{path}")
         #: samples whose coordinates put L or V below the horizon: a renderer never asks
         #: for such a pair, so they are left out (counted, not refused)
-        self.below_horizon = int((~above).sum())
-        keep = above & np.all(np.isfinite(y), axis=1)
-        if int(keep.sum()) < 4:
+        self.below_horizon = below
+        if len(y) < 4:
             raise InputError(f"{path}: fewer than 4 finite samples to interpolate")
-        self._index(L[keep], V[keep], y[keep], k)
+        self._index(L, V, y, k)
 
     @classmethod
     def from_pairs(cls, L: ArrayLike, V: ArrayLike, rgb: ArrayLike, *, k: int = 8,
