@@ -18,8 +18,11 @@ from ratfit.brdf.fitter import (
     brdf_fit_of,
     brdf_segments,
     fit_brdf,
+    fit_brdf_auto,
     load_brdf_fit,
+    log_floor_default,
     log_segments,
+    noise_floors,
     save_brdf_fit,
 )
 from ratfit.brdf.parametrizations import get_parametrization
@@ -129,6 +132,39 @@ def test_a_fit_file_with_an_unknown_values_word_is_refused(fitted, tmp_path):
     save_brdf_fit(path, fitter.results_, {**meta, "values": "sqrt"})
     with pytest.raises(FileFormatError, match="values"):
         load_brdf_fit(path)
+
+
+def test_log_values_take_each_channel_noise_level_as_their_default_floor():
+    """A log fit of scattered data with no width given gets noise-level floors
+    (abs_width="auto"), not the linear default's fraction of the peak; a width the caller
+    gives, a table and a file's own intervals keep theirs."""
+    ds = _material(40)
+    assert log_floor_default(ds, {"values": "log"}) == {"values": "log", "abs_width": "auto"}
+    for kw in ({"values": "linear"}, {"values": "auto"}, {"values": "log", "dt": 0.1},
+               {"values": "log", "abs_width": 2e-3}, {"values": "log", "floor_rel": 0.01}):
+        assert log_floor_default(ds, kw) == kw
+    table = Dataset(x=ds.x, y=ds.y, meta={**ds.meta, "format": "merl"})
+    assert log_floor_default(table, {"values": "log"}) == {"values": "log"}
+    own = Dataset(x=ds.x, y=ds.y, lo=0.9 * ds.y, hi=1.1 * ds.y, meta=ds.meta)
+    assert log_floor_default(own, {"values": "log"}) == {"values": "log"}
+
+
+def test_a_default_log_fit_keeps_the_diffuse_part(tmp_path):
+    """The fit meets the segments the noise floor makes, so the lobe's diffuse half comes
+    back within that floor of the data, whatever the peak."""
+    ds = _material(300)
+    fitter, seg, meta = fit_brdf_auto([ds], values="log", time_limit=None)
+    assert fitter.success_ and meta["values"] == "log"
+    segs = meta["segments"]
+    assert segs["noise_estimated"] is True and segs["floor_rel"] is None
+    y = np.asarray(ds.y)[:, 0]
+    floor = noise_floors(ds.x, ds.y)[0]
+    assert segs["abs_width"] == [floor] and 1e-3 <= floor < 0.01 * y.max()
+    f = brdf_fit_of(fitter.results_, meta).eval_coords(ds.x)[:, 0]
+    low = y < np.quantile(y, 0.5)
+    # inside each segment: at most dt off, or the floor
+    assert np.all(np.abs(f[low] - y[low]) <= np.maximum(segs["dt"] * y[low], floor) * (1 + 1e-9))
+    assert 0.95 < np.median(f[low] / y[low]) < 1.05
 
 
 def test_values_must_be_a_known_word():
