@@ -351,7 +351,8 @@ def main() -> None:
     ap.add_argument("--spp", type=int, default=64)
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--starts", type=int, default=8, help="model fit starts per channel")
-    ap.add_argument("--only", help="run the materials whose name contains this")
+    ap.add_argument("--only", nargs="+", metavar="NAME",
+                    help="run the materials whose name contains one of these")
     ap.add_argument("--work-limit", type=int, default=1000,
                     help="QP solves per channel of a fit made again after its default fit "
                          "ran past --fit-timeout")
@@ -361,7 +362,7 @@ def main() -> None:
     args = ap.parse_args()
     rep = report(args, __file__)
     fits = args.fits or args.out / "fits"
-    names = [n for n in MATERIALS if not args.only or args.only in n]
+    names = [n for n in MATERIALS if not args.only or any(o in n for o in args.only)]
     if not names:
         ap.error(f"no material matches --only {args.only!r}")
     steps: list[str] = []
@@ -464,7 +465,9 @@ def main() -> None:
         fig = draw_rows(pics, f"{scene}, {args.size}x{args.size}, {args.spp} spp: data | "
                               "fit | model | |fit - data| | |model - data|, one exposure "
                               "per row")
-        rep.figure(fig, f"bench_cornell_render_{scene}",
+        # named after the Markdown file: a run with other fits keeps the default's
+        stem = "bench_cornell_render" if rep.markdown is None else rep.markdown.stem
+        rep.figure(fig, f"{stem}_{scene}",
                    f"{scene}: data, fit, model and the two differences per material", fmt="jpg")
         plt.close(fig)
     say("\nsteps:")
