@@ -124,8 +124,10 @@ def _split_channels(values: tuple[str, ...]) -> list[str]:
               show_default=True,
               help="What p / q fits: the values, or their logarithms (the fit is "
                    "exp(p / q): never negative, proved free of poles like any fit, and a "
-                   "relative width costs the same at the diffuse values as at the peak); "
-                   "auto: log for a full MERL table in the half-vector frame, else linear.")
+                   "relative width costs the same at the diffuse values as at the peak; "
+                   "with no width option its floor is each channel's noise level, as "
+                   "--abs-width auto); auto: log for a full MERL table in the half-vector "
+                   "frame, else linear.")
 @click.option("--shared-denominator", "shared", is_flag=True,
               help="One denominator q for every channel, one numerator p_c per channel: "
                    "minimises sum(n_c) + m (--m fixes q's size, --max-total bounds each "
