@@ -149,7 +149,7 @@ def test_log_values_take_each_channel_noise_level_as_their_default_floor():
     assert log_floor_default(own, {"values": "log"}) == {"values": "log"}
 
 
-def test_a_default_log_fit_keeps_the_diffuse_part(tmp_path):
+def test_a_default_log_fit_keeps_the_diffuse_part():
     """The fit meets the segments the noise floor makes, so the lobe's diffuse half comes
     back within that floor of the data, whatever the peak."""
     ds = _material(300)
