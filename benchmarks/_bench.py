@@ -240,6 +240,12 @@ class Report:
         self.parts.append(text)
         self._say(text)
 
+    def stem(self, default: str) -> str:
+        """A figure's file name: the Markdown file's, so that a run written to another
+        file (other fits, other options) keeps the default run's pictures; ``default``
+        without one."""
+        return default if self.markdown is None else self.markdown.stem
+
     def figure(self, fig: Any, stem: str, caption: str, fmt: str = "png") -> Path | None:
         """Save a matplotlib figure as ``<stem>.png`` beside the Markdown file and link it
         there; without ``--markdown`` nothing is saved. ``fmt="jpg"``: a JPEG (quality

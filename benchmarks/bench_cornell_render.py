@@ -465,9 +465,7 @@ def main() -> None:
         fig = draw_rows(pics, f"{scene}, {args.size}x{args.size}, {args.spp} spp: data | "
                               "fit | model | |fit - data| | |model - data|, one exposure "
                               "per row")
-        # named after the Markdown file: a run with other fits keeps the default's
-        stem = "bench_cornell_render" if rep.markdown is None else rep.markdown.stem
-        rep.figure(fig, f"{stem}_{scene}",
+        rep.figure(fig, f"{rep.stem('bench_cornell_render')}_{scene}",
                    f"{scene}: data, fit, model and the two differences per material", fmt="jpg")
         plt.close(fig)
     say("\nsteps:")

@@ -135,8 +135,7 @@ def main() -> None:
                  size="coefs", seconds="s", what=f"Held out, {what}",
                  legend="coefs: the fold fits' totals over the three channels; s: the "
                         "material's K fold fits.",
-                 # named after the Markdown file: a run with --fit keeps the default's
-                 plot="bench_holdout" if rep.markdown is None else rep.markdown.stem,
+                 plot=rep.stem("bench_holdout"),
                  caption="held out: better analytic model's error / "
                  "rational fit's, per channel (above 1: the rational fit is better)")
     rep.write()
