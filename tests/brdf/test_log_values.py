@@ -167,6 +167,17 @@ def test_a_default_log_fit_keeps_the_diffuse_part():
     assert 0.95 < np.median(f[low] / y[low]) < 1.05
 
 
+def test_fit_brdf_takes_the_same_log_floor_as_fit_brdf_auto():
+    """The one-frame entry point resolves a log fit's default floor by the same rule."""
+    ds = _material(120)
+    _fitter, _seg, meta = fit_brdf(ds, values="log", time_limit=None)
+    segs = meta["segments"]
+    assert segs["noise_estimated"] is True and segs["floor_rel"] is None
+    assert segs["abs_width"] == [noise_floors(ds.x, ds.y)[0]]
+    _fitter, _seg, meta = fit_brdf(ds, values="linear", time_limit=None)
+    assert meta["segments"]["noise_estimated"] is False and meta["segments"]["floor_rel"] > 0
+
+
 def test_values_must_be_a_known_word():
     with pytest.raises(InputError, match="unknown values 'sqrt'; choose one of auto, linear, log"):
         fit_brdf(_material(40), values="sqrt", **WIDTHS)

@@ -420,13 +420,18 @@ def fit_brdf(ds: Dataset, *, dt: float | None = None, abs_width: AbsWidth = None
     ``shared_denominator``: one q for every channel
     (:class:`ratfit.brdf.shared.SharedBRDFFitter`; ``max_total`` then bounds each
     numerator; no channel is widened alone). ``values="log"``: fit log values, so the fit
-    is exp(p / q) (:data:`~ratfit.brdf.options.VALUES`; "auto": :func:`resolve_values`).
+    is exp(p / q) (:data:`~ratfit.brdf.options.VALUES`; "auto": :func:`resolve_values`),
+    with noise-level floors when no width is given (:func:`log_floor_default`).
     ``brdf_meta`` is the ``"brdf"`` block of the fit file.
     """
     from ratfit.brdf.consistency import consistent_segments, sample_neighbours
     from ratfit.core.columns import constant_axes
 
     full = ds
+    # a log fit's floor is each channel's noise level unless widths are given (as in
+    # fit_brdf_auto, which passes them on resolved)
+    abs_width = log_floor_default(ds, {"values": values, "dt": dt, "abs_width": abs_width,
+                                       "floor_rel": floor_rel})["abs_width"]
     check_floor_rel(dt, abs_width, floor_rel)
     # each channel's noise level from the data; a dt of ratfit's choice is then widened
     # channel by channel where a channel has no candidate, as a default one is
