@@ -178,6 +178,33 @@ def test_fit_brdf_takes_the_same_log_floor_as_fit_brdf_auto():
     assert meta["segments"]["noise_estimated"] is False and meta["segments"]["floor_rel"] > 0
 
 
+def test_a_default_log_fit_widens_a_channel_that_needs_more_than_its_size_bound(monkeypatch):
+    """At noise widths a channel is searched up to NOISE_LOG_MAX_TOTAL coefficients and
+    widened alone past it (cayman's G needed 83-90 at +-12 % and searched for 40 min);
+    a size the caller gives is the caller's: nothing is widened then."""
+    import ratfit.brdf.fitter as fitter_module
+
+    ds = _material(120)
+    fitter, _seg, meta = fit_brdf(ds, values="log", time_limit=None)
+    start = meta["segments"]["dt"]
+    total = fitter.results_[0].n + fitter.results_[0].m
+    assert fitter.success_ and meta["segments"]["channel_dt"] is None and total > 4
+    cap = total - 2
+    monkeypatch.setattr(fitter_module, "NOISE_LOG_MAX_TOTAL", cap)
+    fitter, seg, meta = fit_brdf(ds, values="log", time_limit=None)
+    res = fitter.results_[0]
+    assert fitter.success_ and res.n + res.m <= cap
+    (wider,) = meta["segments"]["channel_dt"]
+    assert wider > start and f"widened to +- {wider:.3g} y" in res.message
+    assert f"up to {cap} coefficients)" in res.message
+    # the fit meets the wider segments it records
+    y, floor = np.asarray(ds.y)[:, 0], meta["segments"]["abs_width"][0]
+    assert np.allclose(seg.hi[:, 0], np.maximum(y * (1 + wider), y + floor))
+    # a size bound of the caller's: the channel keeps its width and has no fit there
+    fitter, _seg, meta = fit_brdf(ds, values="log", time_limit=None, max_total=cap)
+    assert not fitter.success_ and meta["segments"]["channel_dt"] is None
+
+
 def test_values_must_be_a_known_word():
     with pytest.raises(InputError, match="unknown values 'sqrt'; choose one of auto, linear, log"):
         fit_brdf(_material(40), values="sqrt", **WIDTHS)

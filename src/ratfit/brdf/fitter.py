@@ -132,6 +132,13 @@ FLOOR_REFINEMENTS = 2
 # few % of the theta_d span) and a verified fit at 0.63.
 WIDEN_FACTOR = 1.5
 MAX_DEFAULT_DT = 0.9
+# A log fit at noise-level widths (no width and no size given) searches each channel up
+# to NOISE_LOG_MAX_TOTAL coefficients; a channel with no candidate there is widened alone
+# as above. Measured 2026-11-27 (Cornell, log values, noise floors): every channel of
+# garnet_red, krylon_blue and acryl_blue fits in 36-71, while cayman's G needs 83-90 at
+# +-12 % and its walk below that total (every split a QP of 90 columns whose candidates
+# are repaired and proved) ran past 40 min; cayman and mystique did not finish in 25-50.
+NOISE_LOG_MAX_TOTAL = 72
 _HAS_HALF_VECTOR_ALTERNATIVE = ("ISOTROPIC_TV_TL_DPHI", "ISOTROPIC_TL_TV_PROJ_DPHI")
 # A repair (a candidate that meets every segment but is negative or through a pole
 # between the samples, polished under the validity rows) adds the points where the
@@ -472,7 +479,13 @@ def fit_brdf(ds: Dataset, *, dt: float | None = None, abs_width: AbsWidth = None
     frame = UNKNOWN_PARAMETRIZATION if known is None else known.name
     # (the fitter's options check the word; a shared denominator refuses "log")
     values = resolve_values(values, ds, frame, shared_denominator)
+    size_given = any(fitter_params.get(k) is not None for k in ("max_total", "n", "m", "total"))
+    max_given = fitter_params.get("max_total") is not None
     fitter_params = {**fitter_params, "values": values}
+    if dt_chosen and values == "log" and not size_given and not shared_denominator:
+        # widths at the noise level, sized by ratfit: a channel that needs more than this
+        # is widened alone (below) rather than searched for an hour
+        fitter_params["max_total"] = NOISE_LOG_MAX_TOTAL
     if fitter_params.get("polish_error", "auto") == "auto":
         # relative errors mean something where small values have a noise-level floor
         fitter_params = {**fitter_params,
@@ -491,7 +504,7 @@ def fit_brdf(ds: Dataset, *, dt: float | None = None, abs_width: AbsWidth = None
     channel_dt = starts if starts is not None and len(set(starts)) > 1 else None
     # (one channel at default widths is widened with its frame: fit_brdf_auto's _widen)
     if (((default_widths and seg.n_channels > 1) or dt_chosen) and dt is not None
-            and fitter_params.get("max_total") is None and not shared_denominator):
+            and not max_given and not shared_denominator):
         # not under a size bound of the caller's (as in fit_brdf_auto's widening)
         seg, channel_dt = _widen_channels(fitter, seg, starts or dt, floors, around)
         fitter.segments_ = seg
@@ -777,6 +790,8 @@ def _widen_channels(fitter: BRDFFitter, seg: Segments, dt: float | Sequence[floa
 
     starts = [float(v) for v in np.broadcast_to(np.asarray(dt, dtype=float), seg.n_channels)]
     widths = list(starts)
+    cap = fitter.get_params().get("max_total")
+    up_to = "" if cap is None else f" up to {int(cap)} coefficients"
     lo, hi = seg.lo.copy(), seg.hi.copy()
     for j, res in enumerate(fitter.results_):
         d = widths[j]
@@ -790,7 +805,7 @@ def _widen_channels(fitter: BRDFFitter, seg: Segments, dt: float | Sequence[floa
             res = replace(alone.results_[0],
                           message=f"{alone.results_[0].message}; segments widened to "
                                   f"+- {d:.3g} y for this channel alone (no candidate at "
-                                  f"{widths[j]:.3g})")
+                                  f"{widths[j]:.3g}{up_to})")
             widths[j] = d
             fitter.results_[j] = res
             fitter.validity_[j] = alone.validity_[0]

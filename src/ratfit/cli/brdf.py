@@ -126,7 +126,9 @@ def _split_channels(values: tuple[str, ...]) -> list[str]:
                    "exp(p / q): never negative, proved free of poles like any fit, and a "
                    "relative width costs the same at the diffuse values as at the peak; "
                    "with no width option its floor is each channel's noise level, as "
-                   "--abs-width auto); auto: log for a full MERL table in the half-vector "
+                   "--abs-width auto, and with no size option a channel that needs more "
+                   "than 72 coefficients at its width is widened alone); auto: log for a "
+                   "full MERL table in the half-vector "
                    "frame, else linear.")
 @click.option("--shared-denominator", "shared", is_flag=True,
               help="One denominator q for every channel, one numerator p_c per channel: "
