@@ -7,6 +7,7 @@ sample's value segment is met by exp(p / q) itself, and every evaluator (the Pyt
 from __future__ import annotations
 
 import json
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -203,6 +204,56 @@ def test_a_default_log_fit_widens_a_channel_that_needs_more_than_its_size_bound(
     # a size bound of the caller's: the channel keeps its width and has no fit there
     fitter, _seg, meta = fit_brdf(ds, values="log", time_limit=None, max_total=cap)
     assert not fitter.success_ and meta["segments"]["channel_dt"] is None
+
+
+class _Refit:
+    """A fitter stand-in for ``_widen_channels``: its channel verifies from width
+    ``verifies_at`` on (the refit's segments say which width it was given), and its
+    first result has ``status``."""
+
+    verifies_at = 0.18
+
+    def __init__(self, status: int = 2, **params):
+        self.params = params
+        self.results_ = [replace(_failed(), status=status)]
+        self.validity_, self.proofs_ = [None], [None]
+
+    def get_params(self):
+        return dict(self.params)
+
+    def fit(self, seg):
+        width = float(np.max(seg.hi[:, 0] / seg.center[:, 0])) - 1.0
+        ok = width >= self.verifies_at - 1e-9
+        self.results_ = [replace(_failed(), success=ok, status=0 if ok else 2)]
+        return self
+
+
+def _failed():
+    from ratfit.core.results import FitResult
+
+    return FitResult(success=False, status=2, message="no verified fit", n=0, m=0,
+                     basis="legendre", index_set="total", rational=None, verification=None,
+                     delta=0.0, sigma_min=0.0, sigma_max=0.0, active_set_size=0,
+                     qp_solves=0, seconds=0.0, solver="daqp", decided_by="")
+
+
+def test_under_its_own_size_bound_a_channel_whose_candidates_failed_is_widened():
+    """Under ratfit's size bound a channel whose candidates all failed the verifier
+    (status 2; cayman's G at +-27 % with two threads) is widened like one with no
+    candidate: the search would have gone on to larger sizes without the bound. Without
+    a bound (the linear default) it is not: a larger fit may still verify there."""
+    from ratfit.brdf.fitter import _widen_channels
+
+    y = np.linspace(1.0, 2.0, 20)[:, None]
+    seg = Segments.from_widths(np.linspace(0, 1, 20)[:, None], y, dt=0.05)
+    capped = _Refit(max_total=72)
+    seg2, widths = _widen_channels(capped, seg, 0.05, None, None)
+    assert capped.results_[0].success and widths == [0.18]  # 0.05 -> 0.08 -> 0.12 -> 0.18
+    assert "no verified fit at 0.12 up to 72 coefficients" in capped.results_[0].message
+    assert np.allclose(seg2.hi[:, 0], 1.18 * y[:, 0])
+    free = _Refit(max_total=None)
+    assert _widen_channels(free, seg, 0.05, None, None) == (seg, None)
+    assert not free.results_[0].success
 
 
 def test_values_must_be_a_known_word():

@@ -776,7 +776,9 @@ def _widen_channels(fitter: BRDFFitter, seg: Segments, dt: float | Sequence[floa
                     ) -> tuple[Segments, list[float] | None]:
     """Default widths: each channel whose search had no candidate at all (every split it
     tested infeasible, nothing cut short) is fitted again alone at :func:`widened_dt`
-    widths until it has one, up to :data:`MAX_DEFAULT_DT`; the channels that verified
+    widths until it has one, up to :data:`MAX_DEFAULT_DT` (under ratfit's size bound,
+    :data:`NOISE_LOG_MAX_TOTAL`, also one whose candidates all failed the verifier:
+    cayman's G at +-27 % with two threads); the channels that verified
     keep their fits and their width. Returns the segments (each widened channel's column
     replaced) and the width of each channel, or None when none was widened. ``floors``:
     each channel's absolute floor (from the noise level or the fraction of its peak).
@@ -790,13 +792,17 @@ def _widen_channels(fitter: BRDFFitter, seg: Segments, dt: float | Sequence[floa
 
     starts = [float(v) for v in np.broadcast_to(np.asarray(dt, dtype=float), seg.n_channels)]
     widths = list(starts)
+    # ratfit's size bound (a caller's turns widening off): within it, a channel whose
+    # candidates all failed (status 2) is widened too, as the search would have gone on
+    # to larger sizes without the bound
     cap = fitter.get_params().get("max_total")
     up_to = "" if cap is None else f" up to {int(cap)} coefficients"
     lo, hi = seg.lo.copy(), seg.hi.copy()
     for j, res in enumerate(fitter.results_):
         d = widths[j]
-        while (not res.success and res.status == 1 and not res.time_limited
-               and d < MAX_DEFAULT_DT):
+        while (not res.success and not res.time_limited and d < MAX_DEFAULT_DT
+               and (res.status == 1 or (cap is not None and res.status == 2))):
+            why = "no candidate" if res.status == 1 else "no verified fit"
             d = widened_dt(d)
             one = _one_channel(seg, j, d, floors)
             if around is not None:
@@ -804,7 +810,7 @@ def _widen_channels(fitter: BRDFFitter, seg: Segments, dt: float | Sequence[floa
             alone = type(fitter)(**fitter.get_params()).fit(one)
             res = replace(alone.results_[0],
                           message=f"{alone.results_[0].message}; segments widened to "
-                                  f"+- {d:.3g} y for this channel alone (no candidate at "
+                                  f"+- {d:.3g} y for this channel alone ({why} at "
                                   f"{widths[j]:.3g}{up_to})")
             widths[j] = d
             fitter.results_[j] = res
