@@ -239,7 +239,7 @@ def _failed():
 
 def test_under_its_own_size_bound_a_channel_whose_candidates_failed_is_widened():
     """Under ratfit's size bound a channel whose candidates all failed the verifier
-    (status 2; cayman's G at +-27 % with two threads) is widened like one with no
+    (status 2; cayman's G at +-27 % in the half-vector frame) is widened like one with no
     candidate: the search would have gone on to larger sizes without the bound. Without
     a bound (the linear default) it is not: a larger fit may still verify there."""
     from ratfit.brdf.fitter import _widen_channels

@@ -133,9 +133,10 @@ FLOOR_REFINEMENTS = 2
 WIDEN_FACTOR = 1.5
 MAX_DEFAULT_DT = 0.9
 # A log fit at noise-level widths (no width and no size given) searches each channel up
-# to NOISE_LOG_MAX_TOTAL coefficients; a channel with no candidate there is widened alone
-# as above. Measured 2026-11-27 (Cornell, log values, noise floors): every channel of
-# garnet_red, krylon_blue and acryl_blue fits in 36-71, while cayman's G needs 83-90 at
+# to NOISE_LOG_MAX_TOTAL coefficients; a channel with no candidate there, or whose
+# candidates all fail the verifier, is widened alone as above. Measured 2026-11-27
+# (Cornell, log values, noise floors): every channel of garnet_red, krylon_blue and
+# acryl_blue fits in 36-71, while cayman's G needs 83-90 at
 # +-12 % and its walk below that total (every split a QP of 90 columns whose candidates
 # are repaired and proved) ran past 40 min; cayman and mystique did not finish in 25-50.
 NOISE_LOG_MAX_TOTAL = 72
@@ -778,7 +779,7 @@ def _widen_channels(fitter: BRDFFitter, seg: Segments, dt: float | Sequence[floa
     tested infeasible, nothing cut short) is fitted again alone at :func:`widened_dt`
     widths until it has one, up to :data:`MAX_DEFAULT_DT` (under ratfit's size bound,
     :data:`NOISE_LOG_MAX_TOTAL`, also one whose candidates all failed the verifier:
-    cayman's G at +-27 % with two threads); the channels that verified
+    cayman's G at +-27 %); the channels that verified
     keep their fits and their width. Returns the segments (each widened channel's column
     replaced) and the width of each channel, or None when none was widened. ``floors``:
     each channel's absolute floor (from the noise level or the fraction of its peak).
