@@ -208,14 +208,14 @@ def test_a_default_log_fit_widens_a_channel_that_needs_more_than_its_size_bound(
 
 class _Refit:
     """A fitter stand-in for ``_widen_channels``: its channel verifies from width
-    ``verifies_at`` on (the refit's segments say which width it was given), and its
-    first result has ``status``."""
+    ``verifies_at`` on (the refit's segments say which width it was given); its first
+    result is a candidate that failed the verifier (status 2)."""
 
     verifies_at = 0.18
 
-    def __init__(self, status: int = 2, **params):
+    def __init__(self, **params):
         self.params = params
-        self.results_ = [replace(_failed(), status=status)]
+        self.results_ = [_failed()]
         self.validity_, self.proofs_ = [None], [None]
 
     def get_params(self):
