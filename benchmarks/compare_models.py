@@ -1,10 +1,10 @@
 """Default rational BRDF fits against the best analytic model, per channel, on real data.
 
 For each Cornell material: `ratfit brdf fit DATA` with no options (what
-`ratfit.brdf.fitter.fit_brdf_auto` does without widths: RUSIN_TH_TD_PD with 5 %
-segments and a floor of 0.1 % of the channel's max, halved while the fit is small
-and the floor covers most samples; ISOTROPIC_TV_TL_DPHI (floor 0.2 %) only if that
-fails; physical validity, the least-squares polish), and
+`ratfit.brdf.fitter.fit_brdf_auto` does without widths: the half-vector frame, log
+values at each channel's noise level, each channel within 72 coefficients or widened
+alone; ISOTROPIC_TV_TL_DPHI only if that fails; the validity proof, the least-squares
+polish), evaluated as `ratfit brdf eval` evaluates the saved fit, and
 least-squares fits of lambert+ggx and lambert+beckmann
 (`ratfit.brdf.analytic_models`, 6 random starts). Per channel it prints the
 coefficients, RMSE, log RMSE and cos RMSE of the rational fit, the same errors of
@@ -24,7 +24,12 @@ import numpy as np
 from _bench import ModelComparison, add_markdown_option, report  # benchmarks/_bench.py
 
 from ratfit.brdf.analytic_models import Model, fit_model
-from ratfit.brdf.fitter import brdf_metrics, candidate_parametrizations, fit_brdf_auto
+from ratfit.brdf.fitter import (
+    brdf_fit_of,
+    brdf_metrics,
+    candidate_parametrizations,
+    fit_brdf_auto,
+)
 from ratfit.brdf.io import brdf_dataset
 from ratfit.brdf.parametrizations import get_parametrization
 
@@ -40,17 +45,19 @@ def run(path: Path, jobs: int | None):
     L, V = get_parametrization(PARAM).to_dirs(ds.x)
     others = [brdf_dataset(path, p) for p in candidate_parametrizations(PARAM) if p != PARAM]
     t0 = time.perf_counter()
-    fitter, seg, meta = fit_brdf_auto([*others, ds], jobs=jobs)
+    fitter, _seg, meta = fit_brdf_auto([*others, ds], jobs=jobs)
     secs = time.perf_counter() - t0
     # the same samples in the same order in every parametrization
     assert all(np.array_equal(o.y, ds.y) for o in others)
     print(f"{path.stem}: " + "; ".join(
-        f"{c['parametrization']} floor {c['floor_rel']:g} "
+        f"{c['parametrization']} floor {c['floor'] or 0:g} "
         + (c.get("skipped") or str(c["coefficients"] or "no fit"))
         for c in meta["candidates"]))
     if not fitter.success_:
         return ds, None, {}, secs
-    pred = np.stack([r.rational(seg.x) for r in fitter.results_], axis=1)
+    # the value a user gets (exp(p / q) for a fit of log values), not the stored ratio
+    frame = next(d for d in [*others, ds] if d.meta["param_in"] == meta["parametrization"])
+    pred = np.asarray(brdf_fit_of(fitter.results_, meta).eval_coords(frame.x), dtype=float)
     rat = brdf_metrics(pred, ds.y, L[:, 2], ds.output_names)
     for name, r in zip(ds.output_names, fitter.results_, strict=True):
         rat[name]["coefs"] = r.total

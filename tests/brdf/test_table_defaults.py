@@ -52,11 +52,13 @@ def test_auto_values_are_log_for_a_table_in_the_half_vector_frame(table: Path) -
     assert resolve_values("auto", pd, PD) == "linear"  # no smaller there (measured)
     assert resolve_values("auto", sym, HALF_VECTOR, shared_denominator=True) == "linear"
     assert resolve_values("linear", sym, HALF_VECTOR) == "linear"  # a word given is kept
-    # not a table: scattered measurements stay linear
+    # not a table: scattered measurements are log values at ratfit's widths (noise
+    # floors) in the half-vector frame, linear at widths the caller gives
     scattered = samples_dataset(data, HALF_VECTOR, max_points=200)
     scattered = type(scattered)(**{**scattered.__dict__,
                                    "meta": {**scattered.meta, "format": "cornell"}})
-    assert resolve_values("auto", scattered, HALF_VECTOR) == "linear"
+    assert resolve_values("auto", scattered, HALF_VECTOR) == "log"
+    assert resolve_values("auto", scattered, HALF_VECTOR, widths_given=True) == "linear"
 
 
 def test_a_table_is_tried_in_the_half_vector_frame_first() -> None:

@@ -173,17 +173,38 @@ def test_brdf_job_reads_once_and_resolves_each_frames_widths_once(
     assert len(widths) == (1 if "reciprocal" in (iso.get("skipped") or "") else 2)
 
 
-@pytest.mark.slow
-def test_fit_brdf_file_of_a_path_equals_the_default_command(shared_data: Path,
-                                                            tmp_path: Path) -> None:
-    """``fit_brdf_file(path)`` and ``ratfit brdf fit path``: every default, whole file."""
-    path = shared_data / "cornell" / "cayman.brdf"
+def _scattered_lobes(path: Path, n: int = 200) -> Path:
+    """``n`` scattered measurements of three lambert+ggx channels (diffuse 0.2, 0.05,
+    0.01 under one lobe) at random light and view angles, as an ALTA text file."""
+    from conftest import above_horizon
+
+    from ratfit.brdf.analytic_models import Model
+    from ratfit.brdf.parametrizations import get_parametrization
+
+    rng = np.random.default_rng(0)
+    L, V = above_horizon(rng, n), above_horizon(rng, n)
+    y = np.stack([Model("lambert+ggx")(L, V, [kd, 1.0, 0.2, 0.05]) for kd in (0.2, 0.05, 0.01)],
+                 axis=1)
+    x = get_parametrization("ISOTROPIC_TV_TL_DPHI").from_dirs(L, V)
+    rows = "\n".join(" ".join(f"{v!r}" for v in r) for r in np.hstack([x, y]).tolist())
+    path.write_text("#DIM 3 3\n#PARAM_IN ISOTROPIC_TV_TL_DPHI\n#PARAM_OUT RGB_COLOR\n"
+                    f"{rows}\n")
+    return path
+
+
+def test_fit_brdf_file_of_a_path_equals_the_default_command(tmp_path: Path) -> None:
+    """``fit_brdf_file(path)`` and ``ratfit brdf fit path``: every default, whole file
+    (scattered angles: log values at each channel's noise level, half-vector frame)."""
+    path = _scattered_lobes(tmp_path / "lobes.alta")
     out = tmp_path / "cli.json"
     res = run_cli("brdf", "fit", path, "-o", out)
     assert res.exit_code == 0, res.output
     report = fit_brdf_file(path)
-    assert report.success and report.segments.n_points == 1439
+    assert report.success and report.segments.n_points == 200
     assert _coefficients(report.document()) == _coefficients(out)
+    brdf = json.loads(out.read_text())["brdf"]
+    assert brdf["values"] == "log" and brdf["segments"]["noise_estimated"]
+    assert brdf["parametrization"] == report.parametrization == "RUSIN_TH_TD_SYM"
 
 
 @pytest.mark.slow

@@ -58,7 +58,7 @@ if TYPE_CHECKING:  # scipy.spatial and scipy.sparse load when segments are recon
 
 __all__ = ["AUTO_FLOOR", "BRDF_SOLVER", "DEFAULT_DT", "DEFAULT_FLOOR_REL", "BRDFFit",
            "BRDFFitter", "NOISE_NEAR", "NOISE_QUANTILE", "close_pairs", "is_auto_floor",
-           "noise_floors", "log_floor_default",
+           "noise_floors", "log_floor_default", "scattered_log",
            "HALF_VECTOR", "HALF_VECTOR_FLOOR_REL", "candidate_parametrizations",
            "default_floor_rel", "brdf_metrics", "fit_coefficients", "widened_dt", "brdf_segments",
            "check_floor_rel", "cos_theta_l", "default_dt", "fit_brdf", "fit_brdf_auto",
@@ -437,9 +437,12 @@ def fit_brdf(ds: Dataset, *, dt: float | None = None, abs_width: AbsWidth = None
 
     full = ds
     # a log fit's floor is each channel's noise level unless widths are given (as in
-    # fit_brdf_auto, which passes them on resolved)
+    # fit_brdf_auto, which passes them on resolved); noise floors alone ("auto", as
+    # log_floor_default gives them) are ratfit's widths
+    widths_given = _widths_given(dt, abs_width, floor_rel)
     abs_width = log_floor_default(ds, {"values": values, "dt": dt, "abs_width": abs_width,
-                                       "floor_rel": floor_rel})["abs_width"]
+                                       "floor_rel": floor_rel,
+                                       "shared_denominator": shared_denominator})["abs_width"]
     check_floor_rel(dt, abs_width, floor_rel)
     # each channel's noise level from the data; a dt of ratfit's choice is then widened
     # channel by channel where a channel has no candidate, as a default one is
@@ -479,7 +482,7 @@ def fit_brdf(ds: Dataset, *, dt: float | None = None, abs_width: AbsWidth = None
     known = find_parametrization(str(ds.meta.get("param_in", UNKNOWN_PARAMETRIZATION)))
     frame = UNKNOWN_PARAMETRIZATION if known is None else known.name
     # (the fitter's options check the word; a shared denominator refuses "log")
-    values = resolve_values(values, ds, frame, shared_denominator)
+    values = resolve_values(values, ds, frame, shared_denominator, widths_given)
     size_given = any(fitter_params.get(k) is not None for k in ("max_total", "n", "m", "total"))
     max_given = fitter_params.get("max_total") is not None
     fitter_params = {**fitter_params, "values": values}
@@ -582,23 +585,48 @@ def _validity_line(check: Any, proof: Any) -> str | None:
 
 
 def resolve_values(values: str, ds: Dataset, frame: str,
-                   shared_denominator: bool = False) -> str:
+                   shared_denominator: bool = False, widths_given: bool = False) -> str:
     """The value form (:data:`~ratfit.brdf.options.VALUES`) a fit of ``ds`` in ``frame``
-    uses: ``values`` itself unless it is "auto"; then "log" for a full table of every
-    cell (MERL, :func:`is_table`) in :data:`HALF_VECTOR`, else "linear".
+    uses: ``values`` itself unless it is "auto"; then "log" in :data:`HALF_VECTOR` for a
+    full table of every cell (MERL, :func:`is_table`) and for scattered measurements with
+    ratfit's widths (none given, or the noise floors alone: :func:`scattered_log`,
+    :func:`log_floor_default`), else "linear".
 
     Measured on the known Lambert + two GGX MERL table (errors against its closed form
     at 1e5 random pairs, so away from the cells): in the half-vector frame log values
     take 44 coefficients a channel against 48-51, median / p95 relative error 1.5 /
     4.1 % against 1.4-2.0 / 3.9-4.3 %, 84 s against 346 s. In RUSIN_TH_TD_PD log values
     were no smaller (83-90 a channel after 11 min). On scattered measurements (Cornell,
-    5-fold cross-validation, log fits under their ceiling) neither form predicts held-out
-    samples better (lower RMSE in 5 of 12 channels, lower relative RMSE in 6): linear
-    there. A shared denominator fits p_c / q (linear)."""
+    2026-11-27) log values with noise floors predict held-out samples better: 5-fold
+    relative RMSE below the better analytic model's in 12 of 12 channels of garnet_red,
+    krylon_blue, cayman and mystique, where the linear fit with a floor of 0.1 % of the
+    peak is below it in 0 of 12; the diffuse colour within 10 % in 7 of 15 channels
+    (linear: 2-3x too bright in garnet_red's G and B, 16-99x in cayman and mystique). A
+    shared denominator fits p_c / q (linear)."""
     if values != "auto":
         return values
-    log = is_table(ds) and frame == HALF_VECTOR and not shared_denominator
-    return "log" if log else "linear"
+    if shared_denominator:
+        return "linear"
+    if is_table(ds):
+        return "log" if frame == HALF_VECTOR else "linear"
+    return "log" if not widths_given and scattered_log(ds) and frame == HALF_VECTOR else "linear"
+
+
+def _widths_given(dt: float | None, abs_width: AbsWidth, floor_rel: float | None) -> bool:
+    """A width of the caller's: noise floors alone ("auto") are ratfit's widths."""
+    return (dt is not None or floor_rel is not None
+            or (abs_width is not None and not is_auto_floor(abs_width)))
+
+
+def scattered_log(ds: Dataset) -> bool:
+    """``ds`` is scattered measurements (not a table, no intervals of its own) in
+    :data:`HALF_VECTOR`, where ratfit fits light and view angles first (Cornell, ALTA's
+    retro files): with no width given, "auto" fits their log values with each channel's
+    noise level as its floor, in the half-vector frame and in the frames
+    :func:`fit_brdf_auto` tries after it. Data in other frames (an EXR slice in STARK_2D, a ``--param`` of the caller's)
+    keep linear values and the fraction of the peak: log values there are not measured."""
+    return (not is_table(ds) and (ds.lo is None or ds.hi is None)
+            and str(ds.meta.get("param_in", UNKNOWN_PARAMETRIZATION)) == HALF_VECTOR)
 
 
 def candidate_parametrizations(param: str, cosine: bool = False,
@@ -656,6 +684,14 @@ def fit_brdf_auto(datasets: list[Dataset], **kw: Any):
     """
     if not datasets:
         raise InputError("fit_brdf_auto needs at least one dataset")
+    if (kw.get("values", "auto") == "auto" and not kw.get("shared_denominator")
+            and not _widths_given(kw.get("dt"), kw.get("abs_width"), kw.get("floor_rel"))
+            and scattered_log(datasets[0])):
+        # the value form is the measurements', not the frame's: a frame tried after the
+        # half-vector one fits log values at noise floors too (p / q at those floors was
+        # still searching cayman's own angles after 13 CPU min; log values: 113
+        # coefficients in 3.7 min)
+        kw = {**kw, "values": "log"}
     kw = log_floor_default(datasets[0], kw)
     tried: list[dict[str, Any]] = []
     last = best = None
@@ -723,19 +759,23 @@ def fit_brdf_auto(datasets: list[Dataset], **kw: Any):
 
 def log_floor_default(ds: Dataset, kw: dict[str, Any]) -> dict[str, Any]:
     """``kw`` with ``abs_width="auto"`` when it asks for log values of scattered data
-    with ratfit's widths (no width given, no intervals in the file, not a table).
+    (``values`` "log", or "auto", which is log there: :func:`resolve_values`) with
+    ratfit's widths (no width given, no intervals in the file, not a table) and without
+    a shared denominator.
 
     A log fit keeps relative accuracy through the whole dynamic range; a floor of a
-    fraction of the peak, the linear default, asks for none below it. Each channel's noise
+    fraction of the peak, the linear fit's, asks for none below it. Each channel's noise
     level is the floor instead, as ``--abs-width auto`` sets it. Measured 2026-11-27 on
     garnet_red: 167 coefficients in 2.6 min, relative RMS at its samples R/G/B
     0.04 / 0.30 / 0.47, where a floor of 0.1 % of the peak gave 63 coefficients in 27 s
     and 0.39 / 0.59 / 0.59; its renders' relative image RMSE is 0.136 (window) and 0.121
     (point light) against 0.249 and 0.265 for lambert+ggx*2, which the old floor's log
     fit did not beat. A table keeps its absolute floor (:func:`resolve_widths`)."""
-    if (kw.get("values") != "log" or any(kw.get(k) is not None
-                                         for k in ("dt", "abs_width", "floor_rel"))
-            or is_table(ds) or (ds.lo is not None and ds.hi is not None)):
+    values = kw.get("values", "auto")
+    if (values not in ("log", "auto") or kw.get("shared_denominator")
+            or any(kw.get(k) is not None for k in ("dt", "abs_width", "floor_rel"))
+            or is_table(ds) or (ds.lo is not None and ds.hi is not None)
+            or (values == "auto" and not scattered_log(ds))):
         return kw
     return {**kw, "abs_width": AUTO_FLOOR}
 
@@ -1027,7 +1067,7 @@ class BRDFFitter(RationalFitter):
         proved q > 0; :data:`~ratfit.brdf.options.VALUES`). "auto" is "linear" for a
         fitter given segments directly; :func:`fit_brdf` decides it from the dataset
         (:func:`resolve_values`: log values for a full MERL table in the half-vector
-        frame).
+        frame and for scattered measurements with ratfit's widths).
     used_coords : tuple of int, optional
         The coordinates of the parametrization that the segments' x holds, in
         order (None: all); :func:`fit_brdf` drops constant ones (Cornell's

@@ -42,8 +42,9 @@ POLISH_ERRORS = ("auto", "absolute", "relative")
 #: q > 0 and p >= 0) or their logarithms ("log": the fit is exp(p / q), proved q > 0 and
 #: p / q <= C, :data:`~ratfit.brdf.fitter.LOG_CEILING_FACTOR`; positive by construction,
 #: and a relative segment width is one log width at every value).
-#: "auto": log values for a full table of every cell (MERL) in the half-vector frame,
-#: else linear (:func:`ratfit.brdf.fitter.resolve_values`).
+#: "auto": log values for a full table of every cell (MERL) in the half-vector frame
+#: and for scattered measurements with ratfit's widths (noise-level floors), else linear
+#: (:func:`ratfit.brdf.fitter.resolve_values`).
 VALUES = ("auto", *VALUE_FORMS)
 #: The parametrization of coordinates no registry entry describes: the plain pole check.
 UNKNOWN_PARAMETRIZATION = "UNKNOWN"
@@ -90,7 +91,8 @@ BRDF_OPTIONS = extend_spec(
     Option("values", "choice", "auto",
            "What p / q fits: the values (linear) or their logarithms (log: the fit is "
            "exp(p / q), positive by construction); auto: log for a full MERL table in "
-           "the half-vector frame, else linear.", VALUES, cli=False),
+           "the half-vector frame and for scattered measurements with ratfit's widths, "
+           "else linear.", VALUES, cli=False),
     Option("used_coords", "indices", None,
            "Coordinates of the parametrization the data holds (None: all).",
            validator=_check_coords, cli=False),

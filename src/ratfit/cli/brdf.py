@@ -68,8 +68,10 @@ def _split_channels(values: tuple[str, ...]) -> list[str]:
                    "(MERL) 1e-3 1/sr, the noise level, samples within 2 % of each axis "
                    "of each other whose segments are disjoint getting the hull of the "
                    "two (samples at one point: of the group); for scattered "
-                   "measurements 0.1 % of each channel's peak in the half-vector "
-                   "frame, 0.2 % in others. The floor is halved up to twice while the "
+                   "measurements in the half-vector frame (log values by default) each "
+                   "channel's noise level, as --abs-width auto; with --values linear "
+                   "0.1 % of each channel's peak there, and 0.2 % in other frames. A "
+                   "floor of a fraction of the peak is halved up to twice while the "
                    "fit stays at most 12 coefficients per channel and most samples lie "
                    "under it. "
                    "When nothing verifies and every split tested was infeasible, that "
@@ -127,9 +129,10 @@ def _split_channels(values: tuple[str, ...]) -> list[str]:
                    "relative width costs the same at the diffuse values as at the peak; "
                    "with no width option its floor is each channel's noise level, as "
                    "--abs-width auto, and with no size option a channel that needs more "
-                   "than 72 coefficients at its width is widened alone); auto: log for a "
-                   "full MERL table in the half-vector "
-                   "frame, else linear.")
+                   "than 72 coefficients at its width is widened alone); auto: log in the "
+                   "half-vector frame for a full MERL table and for scattered "
+                   "measurements with no width option (or --abs-width auto alone), else "
+                   "linear.")
 @click.option("--shared-denominator", "shared", is_flag=True,
               help="One denominator q for every channel, one numerator p_c per channel: "
                    "minimises sum(n_c) + m (--m fixes q's size, --max-total bounds each "

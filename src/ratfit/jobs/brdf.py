@@ -270,15 +270,23 @@ class BRDFFitReport:
                          f"in {self.parametrization}; no verified fit for {', '.join(failed)} "
                          f"(refit {'it' if len(failed) == 1 else 'them'} alone with "
                          + " ".join(f"--channel {n}" for n in failed) + ")")
-        if widths["default"]:
+        noise = bool(widths.get("noise_estimated")) and widths["dt"] is not None
+        if widths["default"] or noise:
             limited = [r.message for r in self.results if r.time_limited]
             out_of = ("or a larger --work-limit (the search ran out of QP solves) "
                       if any("work limit of" in m for m in limited) else
                       "or a longer --time-limit (the search ran out of time) "
                       if limited else "")
-            parts.append(f"no verified fit at the default segments (y +- {widths['dt']:.3g} y); "
-                         f"wider ones (--dt {min(2 * float(widths['dt']), 1.0):.2g}) "
-                         + out_of + "may give one")
+            wider = f"{min(2 * float(widths['dt']), 1.0):.2g}"
+            # a width given makes "auto" values linear: a log fit's hint keeps them log
+            log = "--values log " if self.meta.get("values") == "log" else ""
+            parts.append(
+                (f"no verified fit at the segments of each channel's noise level (y +- "
+                 f"{widths['dt']:.3g} y or wider); wider ones ({log}--abs-width auto "
+                 f"--dt {wider}) "
+                 if noise else
+                 f"no verified fit at the default segments (y +- {widths['dt']:.3g} y); "
+                 f"wider ones (--dt {wider}) ") + out_of + "may give one")
         return "hint: " + "; ".join(parts) if parts else None
 
 
