@@ -69,7 +69,7 @@ def test_markdown_has_the_stamp_and_the_rows(bench, tmp_path: Path, capsys) -> N
     else:
         head = inside.stdout.strip()
         dirty = _git(ROOT, "status", "--porcelain", "--", ".",
-                     ":(exclude)docs/benchmarks/generated") != ""
+                     ":(exclude)docs/benchmarks/generated", ":(exclude,glob)**/*.md") != ""
         assert commit == f"- Commit: {head}" + ("+dirty" if dirty else "")
     # the machine: cores, RAM, Python and numpy of this process
     ram = os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES") / 2**30
@@ -122,6 +122,13 @@ def test_the_commit_is_dirty_only_for_code(bench, tmp_path: Path) -> None:
     gen.mkdir(parents=True)
     (gen / "bench_x.md").write_text("table\n")
     assert bench.git_commit(repo) == head
+    # nor is prose written beside a run (a page, the changelog), at any depth
+    (repo / "CHANGELOG.md").write_text("one\n")
+    (repo / "docs" / "page.md").write_text("text\n")
+    assert bench.git_commit(repo) == head
+    (repo / "docs" / "hook.py").write_text("x = 3\n")  # code under docs/ is code
+    assert bench.git_commit(repo) == f"{head}+dirty"
+    (repo / "docs" / "hook.py").unlink()
     (repo / "a.py").write_text("x = 2\n")
     assert bench.git_commit(repo) == f"{head}+dirty"
     assert bench.git_commit(tmp_path / "not-a-repo") == "unknown"
