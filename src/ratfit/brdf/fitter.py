@@ -623,8 +623,9 @@ def scattered_log(ds: Dataset) -> bool:
     :data:`HALF_VECTOR`, where ratfit fits light and view angles first (Cornell, ALTA's
     retro files): with no width given, "auto" fits their log values with each channel's
     noise level as its floor, in the half-vector frame and in the frames
-    :func:`fit_brdf_auto` tries after it. Data in other frames (an EXR slice in STARK_2D, a ``--param`` of the caller's)
-    keep linear values and the fraction of the peak: log values there are not measured."""
+    :func:`fit_brdf_auto` tries after it. Data in other frames (an EXR slice in STARK_2D,
+    a ``--param`` of the caller's) keep linear values and the fraction of the peak: log
+    values there are not measured."""
     return (not is_table(ds) and (ds.lo is None or ds.hi is None)
             and str(ds.meta.get("param_in", UNKNOWN_PARAMETRIZATION)) == HALF_VECTOR)
 
