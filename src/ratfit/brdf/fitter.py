@@ -605,11 +605,9 @@ def resolve_values(values: str, ds: Dataset, frame: str,
     shared denominator fits p_c / q (linear)."""
     if values != "auto":
         return values
-    if shared_denominator:
-        return "linear"
     if is_table(ds):
-        return "log" if frame == HALF_VECTOR else "linear"
-    return "log" if not widths_given and scattered_log(ds) and frame == HALF_VECTOR else "linear"
+        return "log" if frame == HALF_VECTOR and not shared_denominator else "linear"
+    return "log" if _auto_is_log(ds, values, shared_denominator, widths_given) else "linear"
 
 
 def _widths_given(dt: float | None, abs_width: AbsWidth, floor_rel: float | None) -> bool:
@@ -628,6 +626,15 @@ def scattered_log(ds: Dataset) -> bool:
     values there are not measured."""
     return (not is_table(ds) and (ds.lo is None or ds.hi is None)
             and str(ds.meta.get("param_in", UNKNOWN_PARAMETRIZATION)) == HALF_VECTOR)
+
+
+def _auto_is_log(ds: Dataset, values: str, shared_denominator: bool,
+                 widths_given: bool) -> bool:
+    """``values`` "auto" means log values for scattered measurements ``ds``: the rule
+    :func:`resolve_values` applies to one frame and :func:`fit_brdf_auto` to every frame
+    it tries (no shared denominator, ratfit's widths, :func:`scattered_log`)."""
+    return (values == "auto" and not shared_denominator and not widths_given
+            and scattered_log(ds))
 
 
 def candidate_parametrizations(param: str, cosine: bool = False,
@@ -685,9 +692,8 @@ def fit_brdf_auto(datasets: list[Dataset], **kw: Any):
     """
     if not datasets:
         raise InputError("fit_brdf_auto needs at least one dataset")
-    if (kw.get("values", "auto") == "auto" and not kw.get("shared_denominator")
-            and not _widths_given(kw.get("dt"), kw.get("abs_width"), kw.get("floor_rel"))
-            and scattered_log(datasets[0])):
+    if _auto_is_log(datasets[0], kw.get("values", "auto"), bool(kw.get("shared_denominator")),
+                    _widths_given(kw.get("dt"), kw.get("abs_width"), kw.get("floor_rel"))):
         # the value form is the measurements', not the frame's: a frame tried after the
         # half-vector one fits log values at noise floors too (p / q at those floors was
         # still searching cayman's own angles after 13 CPU min; log values: 113

@@ -277,16 +277,17 @@ class BRDFFitReport:
                       if any("work limit of" in m for m in limited) else
                       "or a longer --time-limit (the search ran out of time) "
                       if limited else "")
-            wider = f"{min(2 * float(widths['dt']), 1.0):.2g}"
-            # a width given makes "auto" values linear: a log fit's hint keeps them log
-            log = "--values log " if self.meta.get("values") == "log" else ""
-            parts.append(
-                (f"no verified fit at the segments of each channel's noise level (y +- "
-                 f"{widths['dt']:.3g} y or wider); wider ones ({log}--abs-width auto "
-                 f"--dt {wider}) "
-                 if noise else
-                 f"no verified fit at the default segments (y +- {widths['dt']:.3g} y); "
-                 f"wider ones (--dt {wider}) ") + out_of + "may give one")
+            dt, wider = float(widths["dt"]), f"{min(2 * float(widths['dt']), 1.0):.2g}"
+            if noise:
+                # a width given makes "auto" values linear: a log fit's hint keeps them log
+                log = "--values log " if self.meta.get("values") == "log" else ""
+                said = (f"no verified fit at the segments of each channel's noise level "
+                        f"(y +- {dt:.3g} y or wider); wider ones ({log}--abs-width auto "
+                        f"--dt {wider}) ")
+            else:
+                said = (f"no verified fit at the default segments (y +- {dt:.3g} y); "
+                        f"wider ones (--dt {wider}) ")
+            parts.append(said + out_of + "may give one")
         return "hint: " + "; ".join(parts) if parts else None
 
 
