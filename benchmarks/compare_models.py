@@ -29,6 +29,7 @@ from ratfit.brdf.fitter import (
     brdf_metrics,
     candidate_parametrizations,
     fit_brdf_auto,
+    fitted_frame,
 )
 from ratfit.brdf.io import brdf_dataset
 from ratfit.brdf.parametrizations import get_parametrization
@@ -56,7 +57,7 @@ def run(path: Path, jobs: int | None):
     if not fitter.success_:
         return ds, None, {}, secs
     # the value a user gets (exp(p / q) for a fit of log values), not the stored ratio
-    frame = next(d for d in [*others, ds] if d.meta["param_in"] == meta["parametrization"])
+    frame = fitted_frame([*others, ds], meta)
     pred = np.asarray(brdf_fit_of(fitter.results_, meta).eval_coords(frame.x), dtype=float)
     rat = brdf_metrics(pred, ds.y, L[:, 2], ds.output_names)
     for name, r in zip(ds.output_names, fitter.results_, strict=True):

@@ -58,7 +58,7 @@ if TYPE_CHECKING:  # scipy.spatial and scipy.sparse load when segments are recon
 
 __all__ = ["AUTO_FLOOR", "BRDF_SOLVER", "DEFAULT_DT", "DEFAULT_FLOOR_REL", "BRDFFit",
            "BRDFFitter", "NOISE_NEAR", "NOISE_QUANTILE", "close_pairs", "is_auto_floor",
-           "noise_floors", "log_floor_default", "scattered_log",
+           "noise_floors", "log_floor_default", "scattered_log", "fitted_frame",
            "HALF_VECTOR", "HALF_VECTOR_FLOOR_REL", "candidate_parametrizations",
            "default_floor_rel", "brdf_metrics", "fit_coefficients", "widened_dt", "brdf_segments",
            "check_floor_rel", "cos_theta_l", "default_dt", "fit_brdf", "fit_brdf_auto",
@@ -764,6 +764,13 @@ def fit_brdf_auto(datasets: list[Dataset], **kw: Any):
     return fitter, seg, meta
 
 
+def fitted_frame(datasets: Sequence[Dataset], brdf_meta: dict[str, Any]) -> Dataset:
+    """Of the frames :func:`fit_brdf_auto` was given, the one its fit is in (``brdf_meta``:
+    the fit's ``"brdf"`` block)."""
+    return next(d for d in datasets
+                if str(d.meta.get("param_in", "UNKNOWN")) == brdf_meta["parametrization"])
+
+
 def log_floor_default(ds: Dataset, kw: dict[str, Any]) -> dict[str, Any]:
     """``kw`` with ``abs_width="auto"`` when it asks for log values of scattered data
     (``values`` "log", or "auto", which is log there: :func:`resolve_values`) with
@@ -959,8 +966,7 @@ def _narrow_floor(best: tuple, datasets: list[Dataset], tried: list[dict[str, An
     kept only when verified. Each refit is recorded in ``tried``."""
     for _ in range(FLOOR_REFINEMENTS):
         fitter, seg, meta, band, total = best
-        ds = next(d for d in datasets
-                  if str(d.meta.get("param_in", "UNKNOWN")) == meta["parametrization"])
+        ds = fitted_frame(datasets, meta)
         table = is_table(ds)
         if (max(r.n + r.m for r in fitter.results_) > SMALL_FIT_TOTAL
                 or not band[1] or not _floor_covers_most(seg, band[1], not table)):

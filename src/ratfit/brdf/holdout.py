@@ -161,7 +161,7 @@ def fit_fold(datasets: Sequence[Dataset], test: NDArray[np.intp],
     sample but ``test``; returns its predictions at ``test`` (None without a verified
     fit) and the fold's entry (size, parametrization, coefficients). A function of
     its arguments alone, so folds may run in separate processes."""
-    from ratfit.brdf.fitter import brdf_fit_of, fit_brdf_auto, fit_coefficients
+    from ratfit.brdf.fitter import brdf_fit_of, fit_brdf_auto, fit_coefficients, fitted_frame
 
     n = datasets[0].n_points
     train = np.setdiff1d(np.arange(n), test)
@@ -171,8 +171,7 @@ def fit_fold(datasets: Sequence[Dataset], test: NDArray[np.intp],
     if not fitter.success_:
         return None, entry
     fit = brdf_fit_of(fitter.results_, meta)
-    frame = next(ds for ds in datasets
-                 if str(ds.meta.get("param_in")) == meta["parametrization"])
+    frame = fitted_frame(datasets, meta)
     entry.update(parametrization=meta["parametrization"],
                  coefficients=fit_coefficients(fitter))
     return np.asarray(fit.eval_coords(frame.x[test]), dtype=float), entry

@@ -299,7 +299,12 @@ def fit_brdf_file(request: BRDFFitRequest | str | Path) -> BRDFFitReport:
     gives the fit of ``ratfit brdf fit path``, coefficient for coefficient
     (a Cornell file in a 3-D angle frame, not its 6-D Cartesian pairs).
     """
-    from ratfit.brdf.fitter import candidate_parametrizations, fit_brdf_auto, is_table
+    from ratfit.brdf.fitter import (
+        candidate_parametrizations,
+        fit_brdf_auto,
+        fitted_frame,
+        is_table,
+    )
     from ratfit.brdf.io import read_brdf, samples_dataset
     from ratfit.io.fitfile import file_sha256, save_fit
 
@@ -327,7 +332,7 @@ def fit_brdf_file(request: BRDFFitRequest | str | Path) -> BRDFFitReport:
                                           floor_rel=req.floor_rel, cosine=req.cosine,
                                           clamp=req.clamp,
                                           shared_denominator=req.shared_denominator, **kw)
-    ds = next(d for d in datasets if d.meta.get("param_in") == meta["parametrization"])
+    ds = fitted_frame(datasets, meta)
     report = BRDFFitReport(req, fitter.results_, seg, meta, digest, own, len(datasets),
                            subset=ds.meta.get("subset"))
     if req.holdout is not None:
