@@ -174,6 +174,7 @@ BRDF_ROWS = [
     ("polish", ["--no-polish"], False),
     ("polish_error", ["--polish-error", "absolute"], "absolute"),
     ("values", ["--values", "log"], "log"),
+    ("envelope", ["--no-envelope"], False),
 ]
 
 

@@ -182,6 +182,17 @@ LOG_CEILING_FACTOR = 2.0
 # the ceiling at the points, crosses it between them, and is refused round after round (a
 # lambert+ggx lobe's log fit: no polish in 4 rounds).
 CEILING_ROW_MARGIN = 0.05
+#: Between scattered samples a log fit's only bound is that ceiling, its channel's
+#: highlight: the default fits of the Cornell files rose to 28-1 681 1/sr off the
+#: highlight (theta_h > 0.3, where no sample exceeds 0.06) at random pairs away from the
+#: plane of incidence, the renders' fireflies. There the search's and the polish's rows
+#: hold p / q under a local envelope instead: at each validity point of half-vector
+#: elevation t, :data:`LOG_CEILING_FACTOR` times the largest upper end among the samples
+#: with theta_h >= t - ENVELOPE_SLACK (radians), as far from the mirror direction or
+#: farther (a lobe falls off away from it; retro-reflection and grazing peaks are samples
+#: at large theta_h, so they raise the envelope where they lie). Rows, not the proof: the
+#: proved bound stays the channel's ceiling.
+ENVELOPE_SLACK = 0.05
 
 
 def cos_theta_l(coords: ArrayLike, param: str) -> Array:
@@ -502,6 +513,10 @@ def fit_brdf(ds: Dataset, *, dt: float | None = None, abs_width: AbsWidth = None
         fitter = SharedBRDFFitter(parametrization=frame, used_coords=used,
                                   positive_q=bool(positive_q), **fitter_params)
     else:
+        # scattered measurements leave most pairs unsampled: a log fit keeps under the
+        # samples' envelope there (a table's cells leave no such room)
+        if fitter_params.get("envelope") is None:
+            fitter_params["envelope"] = values == "log" and not is_table(ds)
         fitter = BRDFFitter(parametrization=frame, positive_q=bool(positive_q),
                             used_coords=used, **fitter_params)
     fitter.fit(seg)
@@ -553,6 +568,10 @@ def fit_brdf(ds: Dataset, *, dt: float | None = None, abs_width: AbsWidth = None
         "shared_denominator": bool(shared_denominator),
         # "log": each channel's value is exp(p / q) of its stored p and q
         "values": values,
+        # the local ceiling the search and the polish kept at the validity points
+        "envelope": (None if fitter.__dict__.get("_envelopes") is None else
+                     {"coordinate": "theta_h", "slack": ENVELOPE_SLACK,
+                      "factor": LOG_CEILING_FACTOR, "proved": False}),
     }
     if shared_denominator:
         meta["shared"] = _shared_block(fitter)
@@ -1018,6 +1037,41 @@ def log_ceilings(seg: Segments) -> Array:
     return np.log(LOG_CEILING_FACTOR * np.asarray(top, dtype=float))
 
 
+class ThetaHEnvelope:
+    """A channel's local ceiling over the half-vector elevation (:data:`ENVELOPE_SLACK`):
+    at theta_h = t, :data:`LOG_CEILING_FACTOR` times the largest of ``top`` (the
+    samples' upper ends) among the samples with theta_h >= t - slack, in log."""
+
+    def __init__(self, theta_h: ArrayLike, top: ArrayLike,
+                 slack: float = ENVELOPE_SLACK) -> None:
+        th = np.asarray(theta_h, dtype=float)
+        order = np.argsort(th, kind="stable")
+        self.theta_h = th[order]
+        # the largest upper end at or beyond each sorted elevation
+        self.beyond = np.maximum.accumulate(np.asarray(top, dtype=float)[order][::-1])[::-1]
+        self.slack = float(slack)
+
+    def log_ceiling(self, theta_h: ArrayLike) -> Array:
+        """log of the envelope at each elevation in ``theta_h`` (past the farthest
+        sample: that sample's own)."""
+        k = np.searchsorted(self.theta_h, np.asarray(theta_h, dtype=float) - self.slack,
+                            side="left")
+        return np.log(LOG_CEILING_FACTOR * self.beyond[np.minimum(k, len(self.beyond) - 1)])
+
+
+def theta_h_column(param: str, used_coords: Sequence[int] | None) -> int | None:
+    """The column of theta_h among a fit's coordinates (``used_coords``: the frame's
+    columns it keeps), or None where the frame has none."""
+    p = find_parametrization(param)
+    if p is None or "theta_h" not in p.coords:
+        return None
+    col = p.coords.index("theta_h")
+    if used_coords is None:
+        return col
+    kept = list(used_coords)
+    return kept.index(col) if col in kept else None
+
+
 def nonnegative_segments(seg: Segments) -> Segments:
     """Segments with lo raised to 0: a BRDF value is never negative, so a fit that
     goes below 0 at a sample (allowed by a wide absolute floor) is not a fit."""
@@ -1125,10 +1179,11 @@ class BRDFFitter(RationalFitter):
                  polish_error: str = "auto",
                  used_coords: tuple[int, ...] | None = None,
                  solver: str = BRDF_SOLVER, time_limit: float | None = DEFAULT_TIME_LIMIT,
-                 values: str = "auto",
+                 values: str = "auto", envelope: bool | None = None,
                  **params: Any) -> None:
         super().__init__(solver=solver, time_limit=time_limit, **params)
         self.values = values
+        self.envelope = envelope
         self.parametrization = parametrization
         self.positive_q = positive_q
         self.physical = physical
@@ -1150,6 +1205,7 @@ class BRDFFitter(RationalFitter):
             # segments stay for the last check of exp(p / q) itself
             self._value_segments = segments
             self._ceilings = log_ceilings(segments)
+            self._envelopes = self._theta_h_envelopes(segments)
             segments = log_segments(segments)
         if not self._full_search:
             self._points: dict[int, list[Array]] = {}
@@ -1211,12 +1267,30 @@ class BRDFFitter(RationalFitter):
             return None
         return float(self._ceilings[j])
 
-    def _row_ceiling(self, j: int) -> float | None:
+    def _row_ceiling(self, j: int, points: Array | None = None) -> float | Array | None:
         """The ceiling the search's and the polish's rows keep at their points:
         :data:`CEILING_ROW_MARGIN` under channel ``j``'s, so that a fit is not refused
-        for crossing it between them."""
+        for crossing it between them; with :attr:`envelope`, under the lower of that
+        and the channel's :class:`ThetaHEnvelope` at each of ``points`` (one value each)."""
         top = self._ceiling(j)
-        return None if top is None else top - CEILING_ROW_MARGIN
+        if top is None:
+            return None
+        env = self.__dict__.get("_envelopes")
+        if points is None or env is None:
+            return top - CEILING_ROW_MARGIN
+        col = theta_h_column(self.parametrization, self.used_coords)
+        assert col is not None  # an envelope is made only where there is one
+        local = env[j].log_ceiling(np.asarray(points, dtype=float)[:, col])
+        return np.minimum(local, top) - CEILING_ROW_MARGIN
+
+    def _theta_h_envelopes(self, segments: Segments) -> list[ThetaHEnvelope] | None:
+        """Each channel's :class:`ThetaHEnvelope` of the value ``segments``
+        (:attr:`envelope`, a frame with theta_h), else None."""
+        col = theta_h_column(self.parametrization, self.used_coords)
+        if not self.envelope or col is None:
+            return None
+        return [ThetaHEnvelope(segments.x[:, col], segments.hi[:, j])
+                for j in range(segments.n_channels)]
 
     def _values_checked(self, res: FitResult, j: int) -> FitResult:
         """A verified fit of log values checked as its values: exp(p / q), as every
@@ -1267,6 +1341,8 @@ class BRDFFitter(RationalFitter):
         if self.value_form == "log":  # ``seg`` holds the log values already
             again._value_segments = self._value_segments.channel(j)
             again._ceilings = self._ceilings[j:j + 1]
+            env = self.__dict__.get("_envelopes")
+            again._envelopes = None if env is None else env[j:j + 1]
         again._fit_segments(seg.channel(j))
         out = again.results_[0]
         if not out.success:
@@ -1374,7 +1450,7 @@ class BRDFFitter(RationalFitter):
             cand = polish_fit(rf, seg, j, weights=self._polish_weights(seg, j),
                               positive_at=pts, solver=self.solver,
                               numerator=self.value_form == "linear",
-                              ceiling=self._row_ceiling(j), deadline=deadline,
+                              ceiling=self._row_ceiling(j, pts), deadline=deadline,
                               method=method,
                               repair=repair, work=work)
             if cand is None:
@@ -1499,7 +1575,7 @@ class BRDFFitter(RationalFitter):
             return system
         return _valid_rows(system, space.to_window(grid),
                            numerator=self.physical and self.value_form == "linear",
-                           ceiling=self._row_ceiling(j) if self.physical else None)
+                           ceiling=self._row_ceiling(j, grid) if self.physical else None)
 
     def _valid_grid_for(self, domain: ArrayLike) -> Array | None:
         dom = np.asarray(domain, dtype=float)
@@ -1588,10 +1664,11 @@ class _BRDFSystems:
 
 
 def _valid_rows(base: ArnoldiSystem, t_grid: Array, numerator: bool = True,
-                ceiling: float | None = None) -> AppendedRows:
+                ceiling: float | Array | None = None) -> AppendedRows:
     """``base`` plus, per valid configuration g, the row q(g) / |psi(g)| >= delta,
     (``numerator``) the row p(g) / |phi(g)| >= delta and (``ceiling`` C, a fit of log
-    values) the row (C q(g) - p(g)) / |(-phi(g), C psi(g))| >= delta: p / q <= C.
+    values; one number, or one per point) the row (C q(g) - p(g)) / |(-phi(g), C psi(g))|
+    >= delta: p / q <= C.
 
     The grid counts as points, so :func:`~ratfit.core.qp.solve_fixed` always works
     on an active set that starts from the data's rows and adds grid rows where they
@@ -1605,8 +1682,9 @@ def _valid_rows(base: ArnoldiSystem, t_grid: Array, numerator: bool = True,
 
     def bound() -> Array:
         assert ceiling is not None
+        c = np.reshape(np.asarray(ceiling, dtype=float), (-1, 1))
         d = np.hstack([-base.p_basis.design(t_grid, base.n, window=True),
-                       ceiling * base.q_basis.design(t_grid, base.m, window=True)])
+                       c * base.q_basis.design(t_grid, base.m, window=True)])
         return d / np.linalg.norm(d, axis=1)[:, None]
 
     # built when a candidate reaches the grid (an infeasible split never does)

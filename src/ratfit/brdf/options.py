@@ -93,6 +93,11 @@ BRDF_OPTIONS = extend_spec(
            "exp(p / q), positive by construction); auto: log for a full MERL table in "
            "the half-vector frame and for scattered measurements with ratfit's widths, "
            "else linear.", VALUES, cli=False),
+    Option("envelope", "bool", None,
+           "Fits of log values: the search's and the polish's validity rows keep p / q "
+           "under the samples' envelope over theta_h (ratfit.brdf.fitter.ThetaHEnvelope), "
+           "not only under the channel's ceiling; None: for scattered measurements "
+           "(ratfit.brdf.fitter.fit_brdf decides).", cli=False),
     Option("used_coords", "indices", None,
            "Coordinates of the parametrization the data holds (None: all).",
            validator=_check_coords, cli=False),
@@ -114,6 +119,7 @@ class BRDFOptions(FitOptions):
     polish: bool = True
     polish_error: str = "auto"
     values: str = "auto"
+    envelope: bool | None = None
     used_coords: tuple[int, ...] | None = None
 
 

@@ -133,6 +133,13 @@ def _split_channels(values: tuple[str, ...]) -> list[str]:
                    "half-vector frame for a full MERL table and for scattered "
                    "measurements with no width option (or --abs-width auto alone), else "
                    "linear.")
+@click.option("--envelope/--no-envelope", "envelope", default=None,
+              help="Fits of log values: keep p / q at every validity point under twice the "
+                   "largest upper end among the samples as far from the mirror direction "
+                   "(theta_h, less 0.05 rad) or farther, not only under twice the "
+                   "channel's largest (the proved bound). Default: on for scattered "
+                   "measurements, whose unsampled pairs a fit may otherwise fill with "
+                   "highlights; off for a full MERL table.")
 @click.option("--shared-denominator", "shared", is_flag=True,
               help="One denominator q for every channel, one numerator p_c per channel: "
                    "minimises sum(n_c) + m (--m fixes q's size, --max-total bounds each "
@@ -145,7 +152,7 @@ def brdf_fit(input_path: Path, output: Path | None, fmt: str | None, param: str 
              clamp: float | None, positive_q: bool, channels: tuple[str, ...], color: str,
              max_points: int | None, holdout: int | None, no_polish: bool,
              polish_error: str, as_json: bool, shared: bool = False, values: str = "linear",
-             **options: Any) -> None:
+             envelope: bool | None = None, **options: Any) -> None:
     """Fit each channel of a measured BRDF with a verified rational function."""
     from ratfit.jobs import BRDFFitRequest, fit_brdf_file
 
@@ -160,7 +167,8 @@ def brdf_fit(input_path: Path, output: Path | None, fmt: str | None, param: str 
         "floor_rel": floor_rel, "cosine": cosine, "clamp": clamp, "positive_q": positive_q,
         "channels": _split_channels(channels), "color": color, "max_points": max_points,
         "holdout": holdout, "polish": not no_polish, "polish_error": polish_error,
-        "values": values, "shared_denominator": shared, "output": output})
+        "values": values, "envelope": envelope, "shared_denominator": shared,
+        "output": output})
     cb, stop = _progress(True)  # stderr: JSON on stdout stays clean
     try:
         report = fit_brdf_file(request.with_progress(cb))

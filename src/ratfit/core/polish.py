@@ -159,7 +159,7 @@ def polish_fit(
     repair: bool = False,
     work: WorkBudget | None = None,
     numerator: bool = True,
-    ceiling: float | None = None,
+    ceiling: float | Array | None = None,
 ) -> RationalFunction | None:
     """The least-squares fit of the same size as ``rf`` whose values stay in the
     inner part (a fraction ``tau`` of each width off both ends) of every segment.
@@ -170,7 +170,8 @@ def polish_fit(
 
     ``weights`` (N,) weight each point's error (default 1: plain RMSE).
     ``positive_at`` (G, d) are points (original coordinates) where q > 0 and
-    (``numerator``) p >= 0, or (``ceiling`` C, a fit of log values) p / q <= C, are also
+    (``numerator``) p >= 0, or (``ceiling`` C, a fit of log values; one per point or one
+    for all) p / q <= C, are also
     required. Returns None when the QP fails; the result is
     a candidate, to be verified by the caller. ``work`` counts each QP solve
     (each active-set round of each cut-off); once it is exhausted the polish gives
@@ -205,7 +206,7 @@ def _polish(rf: RationalFunction, D: _Design, lo: Array, hi: Array, y: Array,
             weights: ArrayLike | None, positive_at: ArrayLike | None, tau: float,
             solver: str, max_rounds: int, start_rows: int, deadline: float | None,
             method: str, iterations: int, repair: bool, work: WorkBudget | None,
-            numerator: bool, ceiling: float | None = None) -> RationalFunction | None:
+            numerator: bool, ceiling: float | Array | None = None) -> RationalFunction | None:
     """:func:`polish_fit` on the samples' basis values ``D``."""
     n = rf.n
     c = np.concatenate([rf.p, rf.q])
@@ -353,7 +354,7 @@ def _polish_pass(D: _Design, lo: Array, hi: Array, y: Array, w: Array, c: Array,
 
 
 def _positivity_rows(rf: RationalFunction, positive_at: ArrayLike | None,
-                     numerator: bool = True, ceiling: float | None = None
+                     numerator: bool = True, ceiling: float | Array | None = None
                      ) -> tuple[Array, Array]:
     """Rows G c >= h keeping q > 0, (``numerator``) p >= 0 and (``ceiling`` C) C q - p >= 0
     at ``positive_at``, and 1 / (the norm each p or bound row was divided by), 0 on q rows;
@@ -367,8 +368,9 @@ def _positivity_rows(rf: RationalFunction, positive_at: ArrayLike | None,
     bounds = []
     if numerator:
         bounds.append(np.hstack([Pg, np.zeros_like(Qg)]))
-    if ceiling is not None:
-        bounds.append(np.hstack([-Pg, ceiling * Qg]))
+    if ceiling is not None:  # one C, or one per point
+        bounds.append(np.hstack([-Pg, np.reshape(np.asarray(ceiling, dtype=float),
+                                                 (-1, 1)) * Qg]))
     if not bounds:
         return q_rows, np.zeros(len(Qg))
     rows = np.vstack(bounds)
