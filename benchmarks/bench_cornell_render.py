@@ -26,9 +26,14 @@ camera, light, samples and seed. Image errors over the sphere's pixels:
 * lum. ratio: mean luminance of the render / mean luminance of the data's render;
 * chroma: the distance between the (r, g) chromaticities, (r, g) / (r + g + b), of the
   two renders per pixel, averaged with the data render's luminance as the weight (0: the
-  same colour everywhere; pure red against pure green is 1.41).
+  same colour everywhere; pure red against pure green is 1.41);
+* SMAPE: the mean over the sphere's pixels and R, G, B of |x - d| / (|x| + |d| + e), e
+  1 % of the data render's mean (0: the same image, 1: black or far off everywhere). The
+  rel. RMSE is decided by the brightest pixels (a black sphere scores 1.0, a right one
+  whose highlight is a few pixels off more); SMAPE weighs every pixel alike.
 
-The fit wins a material (in a scene) when its rel. RMSE is the smaller. Each material
+The fit wins a material (in a scene) when its rel. RMSE is the smaller; the SMAPE count
+is given beside it. Each material
 and scene also gets a PNG in ``--out``: data | fit | model | |fit - data| | |model -
 data|, one exposure (the brightest of the three renders' 99.5th luminance percentile
 maps to 1, as in ``ratfit render``). With ``--markdown`` the same panels, one row per
@@ -262,7 +267,15 @@ class Render:
     rel_rmse: float
     lum_ratio: float
     chroma: float
+    smape: float
     seconds: dict[str, float]
+
+
+def smape(a: np.ndarray, b: np.ndarray) -> float:
+    """Mean of |a - b| / (|a| + |b| + e) over (N, 3) pixels, e 1 % of ``b``'s mean (b: the
+    data's render)."""
+    e = 0.01 * float(np.mean(np.abs(b)))
+    return float(np.mean(np.abs(a - b) / (np.abs(a) + np.abs(b) + e)))
 
 
 def render_pair(fit_file: Path, data: Path, out: Path, scene: str, size: int, spp: int,
@@ -291,7 +304,8 @@ def render_pair(fit_file: Path, data: Path, out: Path, scene: str, size: int, sp
                            f"{d['rel_rmse']:.6g}")
     return Render(img, dimg, float(d["rel_rmse"]),
                   float(d["mean_luminance_fit"] / d["mean_luminance_data"]),
-                  chroma_distance(img[hit], dimg[hit], dimg[hit] @ LUMA), dict(rep.seconds))
+                  chroma_distance(img[hit], dimg[hit], dimg[hit] @ LUMA),
+                  smape(img[hit], dimg[hit]), dict(rep.seconds))
 
 
 def panels(data: np.ndarray, fit: np.ndarray | None, model: np.ndarray, size: int
@@ -407,7 +421,7 @@ def main() -> None:
 
     args.out.mkdir(parents=True, exist_ok=True)
     for scene in args.scene:
-        rows, pics, wins, counted = [], [], 0, 0
+        rows, pics, wins, counted, smape_wins = [], [], 0, 0, 0
         same_data = 0.0
         for m in mats:
             stem = args.out / "exr" / f"{m.name}-{scene}"
@@ -423,6 +437,7 @@ def main() -> None:
                 same_data = max(same_data, float(np.abs(fr.data - mr.data).max()))
             win = fr is not None and fr.rel_rmse < mr.rel_rmse
             wins += win
+            smape_wins += fr is not None and fr.smape < mr.smape
             counted += 1
             nparams = m.model_params[m.best]
             rows.append([
@@ -432,6 +447,7 @@ def main() -> None:
                 "-" if fr is None else f"{fr.rel_rmse:.4f}", f"{mr.rel_rmse:.4f}",
                 "-" if fr is None else f"{fr.lum_ratio:.3f}", f"{mr.lum_ratio:.3f}",
                 "-" if fr is None else f"{fr.chroma:.4f}", f"{mr.chroma:.4f}",
+                "-" if fr is None else f"{fr.smape:.4f}", f"{mr.smape:.4f}",
                 "fit" if win else "model" + (" (no verified fit)" if fr is None else "")])
             ims, scale = panels(mr.data, None if fr is None else fr.image, mr.image, args.size)
             caps = ["data",
@@ -456,11 +472,14 @@ def main() -> None:
             "image errors against the data's render over the sphere's pixels",
             ["material", "fit n+m", "model (params)", "rel. RMSE fit", "rel. RMSE model",
              "lum. ratio fit", "lum. ratio model", "chroma fit", "chroma model",
-             "smaller rel. RMSE"], rows,
-            note=f"fit wins {wins} of {counted} ({scene}). rel. RMSE: RMS of the RGB "
+             "SMAPE fit", "SMAPE model", "smaller rel. RMSE"], rows,
+            note=f"fit wins {wins} of {counted} ({scene}); its SMAPE is the smaller in "
+                 f"{smape_wins} of {counted}. rel. RMSE: RMS of the RGB "
                  "difference / RMS of the data's render; lum. ratio: mean luminance / the "
                  "data's; chroma: luminance-weighted mean distance of the (r, g) "
-                 "chromaticities. The data's render in the fit's and in the model's call "
+                 "chromaticities; SMAPE: mean of |x - d| / (|x| + |d| + 1 % of the data's "
+                 "mean) over pixels and channels. The data's render in the fit's and in "
+                 "the model's call "
                  f"differ by at most {same_data:.3g} (same seed).")
         fig = draw_rows(pics, f"{scene}, {args.size}x{args.size}, {args.spp} spp: data | "
                               "fit | model | |fit - data| | |model - data|, one exposure "

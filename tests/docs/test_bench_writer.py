@@ -222,3 +222,33 @@ def test_a_comparison_writes_its_table_its_count_and_its_plot(bench, tmp_path: P
             "channels. Each cell: rational / better model (model / rational); s: seconds.") in text
     assert _md_rows(text)[2][:3] == ["m", "R", "3+5"]
     assert rep.parts[-1] == "![a caption](x.png)"
+
+
+def test_the_render_smape_weighs_every_pixel_where_rel_rmse_weighs_the_highlight(
+        bench) -> None:
+    spec = importlib.util.spec_from_file_location(
+        "bench_cornell_render", ROOT / "benchmarks" / "bench_cornell_render.py")
+    assert spec is not None and spec.loader is not None
+    mod = importlib.util.module_from_spec(spec)
+    sys.modules["bench_cornell_render"] = mod
+    try:
+        spec.loader.exec_module(mod)
+    finally:
+        sys.modules.pop("bench_cornell_render", None)
+    data = np.ones((4, 3))
+    data[0] = 100.0  # a highlight pixel
+    black = np.zeros_like(data)
+    shifted = data.copy()
+    shifted[0], shifted[1] = 1.0, 100.0  # the highlight one pixel off
+
+    def rel_rmse(a: np.ndarray) -> float:
+        return float(np.sqrt(np.mean((a - data) ** 2) / np.mean(data ** 2)))
+
+    assert mod.smape(data, data) == 0.0
+    e = 0.01 * 25.75  # 1 % of the data's mean
+    assert mod.smape(black, data) == pytest.approx((9 / (1 + e) + 300 / (100 + e)) / 12)
+    assert mod.smape(shifted, data) == pytest.approx(6 * 99 / (101 + e) / 12)
+    # rel. RMSE ranks the black image first (1.0 against 1.4), SMAPE the shifted one
+    assert rel_rmse(black) == pytest.approx(1.0)
+    assert rel_rmse(shifted) == pytest.approx(1.4, abs=0.001)
+    assert mod.smape(shifted, data) < 0.5 < mod.smape(black, data)
