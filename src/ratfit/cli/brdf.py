@@ -134,7 +134,8 @@ def _split_channels(values: tuple[str, ...]) -> list[str]:
                    "measurements with no width option (or --abs-width auto alone), else "
                    "linear.")
 @click.option("--envelope/--no-envelope", "envelope", default=None,
-              help="Fits of log values: keep p / q at every validity point under twice the "
+              help="Fits of log values (p / q fits have no ceiling): keep p / q at every "
+                   "validity point under twice the "
                    "largest upper end among the samples as far from the mirror direction "
                    "(theta_h, less 0.05 rad) or farther, not only under twice the "
                    "channel's largest (the proved bound). Default: on for scattered "
