@@ -18,6 +18,7 @@ from ratfit.brdf.fitter import (
     LOG_CEILING_FACTOR,
     BRDFFitter,
     ThetaHEnvelope,
+    brdf_segments,
     fit_brdf,
     theta_h_column,
 )
@@ -60,7 +61,7 @@ def test_the_polish_rows_take_one_ceiling_per_point() -> None:
 def test_row_ceilings_are_the_envelope_under_the_channel_ceiling() -> None:
     ds = _material(200)
     f = BRDFFitter(parametrization="RUSIN_TH_TD_SYM", values="log", envelope=True)
-    seg = fit_brdf(ds, values="log", max_total=2, **WIDTHS)[1]  # segments only
+    seg = brdf_segments(ds, dt=WIDTHS["dt"], abs_width=WIDTHS["abs_width"])
     f._ceilings = np.log(LOG_CEILING_FACTOR * seg.hi.max(axis=0))
     f._envelopes = f._theta_h_envelopes(seg)
     pts = np.array([[0.0018, 0.5, 0.0], [0.6, 0.5, 0.0], [1.3, 0.5, 0.0]])
