@@ -135,12 +135,11 @@ def _split_channels(values: tuple[str, ...]) -> list[str]:
                    "linear.")
 @click.option("--envelope/--no-envelope", "envelope", default=None,
               help="Fits of log values (p / q fits have no ceiling): keep p / q at every "
-                   "validity point under twice the "
-                   "largest upper end among the samples as far from the mirror direction "
-                   "(theta_h, less 0.05 rad) or farther, not only under twice the "
-                   "channel's largest (the proved bound). Default: on for scattered "
-                   "measurements, whose unsampled pairs a fit may otherwise fill with "
-                   "highlights; off for a full MERL table.")
+                   "validity point under twice the largest upper end among the samples as "
+                   "far from the mirror direction (theta_h, less 0.05 rad) or farther, not "
+                   "only under twice the channel's largest (the proved bound). Default: on "
+                   "for scattered measurements, whose unsampled pairs a fit may otherwise "
+                   "fill with highlights; off for a full MERL table.")
 @click.option("--shared-denominator", "shared", is_flag=True,
               help="One denominator q for every channel, one numerator p_c per channel: "
                    "minimises sum(n_c) + m (--m fixes q's size, --max-total bounds each "
