@@ -2,7 +2,8 @@
 in the plane of incidence), and a log fit's proved ceiling is its channel's highlight:
 the default fits rose to 28-1 681 1/sr off the highlight (theta_h > 0.3, where no sample
 exceeds 0.06) at pairs away from the plane, the renders' fireflies. The search's and the
-polish's validity rows keep p / q under the samples' envelope over theta_h instead."""
+polish's validity rows keep p / q under the samples' envelope over theta_h instead, and
+the validity proof proves it (with twice the slack) on the whole evaluated region."""
 
 from __future__ import annotations
 
@@ -14,6 +15,7 @@ from test_log_values import WIDTHS, _material
 
 from ratfit.brdf.fitter import (
     CEILING_ROW_MARGIN,
+    ENVELOPE_PROOF_SLACK,
     ENVELOPE_SLACK,
     LOG_CEILING_FACTOR,
     BRDFFitter,
@@ -24,7 +26,10 @@ from ratfit.brdf.fitter import (
 )
 from ratfit.brdf.io import read_brdf, samples_dataset
 from ratfit.brdf.parametrizations import get_parametrization
+from ratfit.brdf.validity import StepCeiling, reprove_saved
 from ratfit.core.polish import _positivity_rows
+from ratfit.core.positivity import prove_below
+from ratfit.io.fitfile import load_fit, scope_text
 
 
 def test_the_envelope_is_the_largest_upper_end_at_least_as_far_from_the_mirror() -> None:
@@ -80,11 +85,90 @@ def test_scattered_log_fits_keep_an_envelope_and_say_so() -> None:
     fitter, _seg, meta = fit_brdf(ds, values="log", **WIDTHS)
     assert fitter.success_ and fitter.envelope is True
     assert meta["envelope"] == {"coordinate": "theta_h", "slack": ENVELOPE_SLACK,
-                                "factor": LOG_CEILING_FACTOR, "proved": False}
+                                "proof_slack": ENVELOPE_PROOF_SLACK,
+                                "factor": LOG_CEILING_FACTOR, "proved": True}
     lin = fit_brdf(ds, values="linear", **WIDTHS)
     assert lin[0].envelope is False and lin[2]["envelope"] is None
     off = fit_brdf(ds, values="log", envelope=False, **WIDTHS)
     assert off[0].envelope is False and off[2]["envelope"] is None
+    assert all("envelope" not in p for p in off[2]["proof"])
+
+
+def test_the_step_ceiling_falls_past_each_record_sample_by_its_slack() -> None:
+    # samples at theta_h 0, 0.2, 0.2, 0.5 with upper ends 10, 1, 3, 0.1
+    sc = StepCeiling.of_samples(0, [0.2, 0.0, 0.5, 0.2], [1.0, 10.0, 0.1, 3.0],
+                                slack=0.1, factor=2.0)
+    # the largest end at theta_h >= t - 0.1 falls from 10 past 0.1, from 3 past 0.3
+    # (the two samples at 0.2 fall together) and from 0.1 never (the farthest sample)
+    np.testing.assert_allclose(sc.theta_h, [0.1, 0.3])
+    np.testing.assert_allclose(np.exp(sc.log_ceiling), [20.0, 6.0, 0.2])
+    t = np.array([-1.0, 0.1, 0.1000001, 0.3, 0.31, 5.0])
+    np.testing.assert_allclose(np.exp(sc.at(t)), [20.0, 20.0, 6.0, 6.0, 0.2, 0.2])
+    # the rows' envelope with the proof's slack is the same function
+    env = ThetaHEnvelope([0.2, 0.0, 0.5, 0.2], [1.0, 10.0, 0.1, 3.0], slack=0.1)
+    np.testing.assert_allclose(sc.at(t), env.log_ceiling(t), rtol=1e-12)
+    # a file's entry round-trips; a rising or malformed one is no ceiling
+    back = StepCeiling.from_dict({"envelope": sc.to_dict()})
+    assert back is not None and back.column == 0
+    np.testing.assert_array_equal(back.theta_h, sc.theta_h)
+    np.testing.assert_array_equal(back.log_ceiling, sc.log_ceiling)
+    bad = sc.to_dict() | {"log_ceiling": [0.0, 1.0, 2.0]}
+    assert StepCeiling.from_dict({"envelope": bad}) is None
+    assert StepCeiling.from_dict({"envelope": sc.to_dict() | {"column": "0"}}) is None
+    assert StepCeiling.from_dict({"ceiling": 3.0}) is None
+
+
+def test_a_step_bound_is_proved_piece_by_piece() -> None:
+    """p = -t under C = 2 for t <= 0 and 0.1 past it: p < C everywhere. On the whole
+    box the bound is C's smaller value, and the corner t = -1 (p = 1) exceeds it: only a
+    piece where C is one number throughout may show a counterexample."""
+    q, p = np.array([1.0, 0.0]), np.array([0.0, -1.0])  # Legendre: q = 1, p = -t
+
+    def step(lo, hi):
+        c = np.where(hi[:, 0] > 0.0, 0.1, 2.0)
+        return c, np.where(lo[:, 0] >= 0.0, True, hi[:, 0] <= 0.0)
+
+    ok = prove_below(q, p, "legendre", step)
+    assert ok.proved and not ok.counterexample and ok.boxes >= 3
+
+    # under C = 0.3 past t = -0.5, p = -t exceeds it on (-0.5, -0.3): refuted there
+    def low(lo, hi):
+        c = np.where(hi[:, 0] > -0.5, 0.3, 2.0)
+        return c, np.where(lo[:, 0] >= -0.5, True, hi[:, 0] <= -0.5)
+
+    no = prove_below(q, p, "legendre", low)
+    assert not no.proved and no.counterexample
+    assert np.all((no.points[:, 0] >= -0.5) & (no.points[:, 0] <= -0.3))
+
+
+def test_log_fits_prove_their_envelope_and_a_file_is_proved_again(tmp_path) -> None:
+    from ratfit.brdf.fitter import save_brdf_fit
+
+    ds = _material(300)
+    fitter, _seg, meta = fit_brdf(ds, values="log", **WIDTHS)
+    assert fitter.success_
+    proof = fitter.proofs_[0]
+    assert proof.proved and proof.envelope is not None
+    assert "samples' envelope over theta_h" in proof.summary()
+    entry = meta["proof"][0]
+    assert entry["envelope"]["column"] == 0 and len(entry["envelope"]["log_ceiling"]) >= 2
+    # the proved steps are the samples' envelope with the proof's slack
+    seg = brdf_segments(ds, dt=WIDTHS["dt"], abs_width=WIDTHS["abs_width"])
+    t = np.linspace(0.0, 1.5, 301)
+    env = ThetaHEnvelope(seg.x[:, 0], seg.hi[:, 0], slack=ENVELOPE_PROOF_SLACK)
+    np.testing.assert_allclose(proof.envelope.at(t), env.log_ceiling(t), rtol=1e-12)
+    path = tmp_path / "fit.json"
+    save_brdf_fit(path, fitter.results_, meta)
+    saved = load_fit(path)
+    assert reprove_saved(saved) is True
+    assert "under the samples' envelope over theta_h" in scope_text(saved, True)
+    # a lower envelope than the fit's values is not proved from the same numbers
+    stated = saved.extra["brdf"]["proof"][0]["envelope"]
+    stated["log_ceiling"] = [min(stated["log_ceiling"]) - 8.0] * len(stated["log_ceiling"])
+    assert reprove_saved(saved) is False
+    # an envelope the file states but that cannot be read proves nothing
+    saved.extra["brdf"]["proof"][0]["envelope"] = {"column": 0}
+    assert reprove_saved(saved) is False
 
 
 @pytest.mark.slow
@@ -104,7 +188,11 @@ def test_mystique_stays_under_its_samples_off_the_highlight(shared_data) -> None
     th = get_parametrization("RUSIN_TH_TD_SYM").from_dirs(L, V)[:, 0]
     v = fit.eval_dirs(L, V)
     off = th > 0.3
+    lo, hi = fit.saved.channels[0].rational.space.domain[0]
     for j in range(3):
-        top = ds.y[ds.x[:, 0] > 0.3 - ENVELOPE_SLACK, j].max()  # 0.05 1/sr
-        # the envelope holds at the rows' points; between them a little over it
-        assert v[off, j].max() < 2 * LOG_CEILING_FACTOR * top, j
+        top = ds.y[ds.x[:, 0] > 0.3 - ENVELOPE_PROOF_SLACK, j].max()  # 0.05 1/sr
+        assert v[off, j].max() <= LOG_CEILING_FACTOR * top * (1 + 1e-9), j
+        # and everywhere under the proved steps, at theta_h as the fit clamps it
+        steps = StepCeiling.from_dict(report.meta["proof"][j])
+        assert steps is not None
+        assert np.all(v[:, j] <= np.exp(steps.at(np.clip(th, lo, hi))) * (1 + 1e-9)), j

@@ -55,6 +55,7 @@ from ratfit.io.fitfile import SavedFit, fit_document, load_fit, save_fit
 
 if TYPE_CHECKING:  # scipy.spatial and scipy.sparse load when segments are reconciled
     from ratfit.brdf.consistency import Neighbours
+    from ratfit.brdf.validity import StepCeiling
 
 __all__ = ["AUTO_FLOOR", "BRDF_SOLVER", "DEFAULT_DT", "DEFAULT_FLOOR_REL", "BRDFFit",
            "BRDFFitter", "NOISE_NEAR", "NOISE_QUANTILE", "close_pairs", "is_auto_floor",
@@ -190,9 +191,13 @@ CEILING_ROW_MARGIN = 0.05
 #: elevation t, :data:`LOG_CEILING_FACTOR` times the largest upper end among the samples
 #: with theta_h >= t - ENVELOPE_SLACK (radians), as far from the mirror direction or
 #: farther (a lobe falls off away from it; retro-reflection and grazing peaks are samples
-#: at large theta_h, so they raise the envelope where they lie). Rows, not the proof: the
-#: proved bound stays the channel's ceiling.
+#: at large theta_h, so they raise the envelope where they lie).
 ENVELOPE_SLACK = 0.05
+#: The proof holds each fit under the same envelope with twice the slack
+#: (:class:`~ratfit.brdf.validity.StepCeiling`): its pieces are proved against the
+#: envelope's value at their far end in theta_h, so the rows' envelope, met at points up
+#: to a slack apart, is proved wherever a piece spans at most one slack.
+ENVELOPE_PROOF_SLACK = 2 * ENVELOPE_SLACK
 
 
 def cos_theta_l(coords: ArrayLike, param: str) -> Array:
@@ -568,10 +573,13 @@ def fit_brdf(ds: Dataset, *, dt: float | None = None, abs_width: AbsWidth = None
         "shared_denominator": bool(shared_denominator),
         # "log": each channel's value is exp(p / q) of its stored p and q
         "values": values,
-        # the local ceiling the search and the polish kept at the validity points
+        # the local ceiling the search and the polish kept at the validity points, and
+        # the proof on the whole region with proof_slack (each channel's proof entry
+        # holds its steps)
         "envelope": (None if fitter.__dict__.get("_envelopes") is None else
                      {"coordinate": "theta_h", "slack": ENVELOPE_SLACK,
-                      "factor": LOG_CEILING_FACTOR, "proved": False}),
+                      "proof_slack": ENVELOPE_PROOF_SLACK,
+                      "factor": LOG_CEILING_FACTOR, "proved": True}),
     }
     if shared_denominator:
         meta["shared"] = _shared_block(fitter)
@@ -1135,6 +1143,12 @@ class BRDFFitter(RationalFitter):
         fitter given segments directly; :func:`fit_brdf` decides it from the dataset
         (:func:`resolve_values`: log values for a full MERL table in the half-vector
         frame and for scattered measurements with ratfit's widths).
+    envelope : bool or None, default None
+        A fit of log values in a frame with theta_h: keep p / q under the samples'
+        envelope over theta_h too, at the search's and the polish's points
+        (:class:`ThetaHEnvelope`) and by the validity proof on the whole region
+        (:data:`ENVELOPE_PROOF_SLACK`). None is off here; :func:`fit_brdf` turns it on
+        for scattered measurements.
     used_coords : tuple of int, optional
         The coordinates of the parametrization that the segments' x holds, in
         order (None: all); :func:`fit_brdf` drops constant ones (Cornell's
@@ -1206,6 +1220,7 @@ class BRDFFitter(RationalFitter):
             self._value_segments = segments
             self._ceilings = log_ceilings(segments)
             self._envelopes = self._theta_h_envelopes(segments)
+            self._step_ceilings = self._proof_envelopes(segments)
             segments = log_segments(segments)
         if not self._full_search:
             self._points: dict[int, list[Array]] = {}
@@ -1283,6 +1298,23 @@ class BRDFFitter(RationalFitter):
         local = env[j].log_ceiling(np.asarray(points, dtype=float)[:, col])
         return np.minimum(local, top) - CEILING_ROW_MARGIN
 
+    def _proof_envelope(self, j: int) -> StepCeiling | None:
+        """The envelope channel ``j``'s proof holds (:data:`ENVELOPE_PROOF_SLACK`), or None."""
+        steps = self.__dict__.get("_step_ceilings")
+        return None if steps is None else steps[j]
+
+    def _proof_envelopes(self, segments: Segments) -> list[StepCeiling] | None:
+        """Each channel's :class:`~ratfit.brdf.validity.StepCeiling` of the value
+        ``segments`` (:attr:`envelope`, a frame with theta_h), else None."""
+        from ratfit.brdf.validity import StepCeiling
+
+        col = theta_h_column(self.parametrization, self.used_coords)
+        if not self.envelope or col is None:
+            return None
+        return [StepCeiling.of_samples(col, segments.x[:, col], segments.hi[:, j],
+                                       ENVELOPE_PROOF_SLACK, LOG_CEILING_FACTOR)
+                for j in range(segments.n_channels)]
+
     def _theta_h_envelopes(self, segments: Segments) -> list[ThetaHEnvelope] | None:
         """Each channel's :class:`ThetaHEnvelope` of the value ``segments``
         (:attr:`envelope`, a frame with theta_h), else None."""
@@ -1343,6 +1375,8 @@ class BRDFFitter(RationalFitter):
             again._ceilings = self._ceilings[j:j + 1]
             env = self.__dict__.get("_envelopes")
             again._envelopes = None if env is None else env[j:j + 1]
+            steps = self.__dict__.get("_step_ceilings")
+            again._step_ceilings = None if steps is None else steps[j:j + 1]
         again._fit_segments(seg.channel(j))
         out = again.results_[0]
         if not out.success:
@@ -1382,7 +1416,8 @@ class BRDFFitter(RationalFitter):
                 fam = rf.to_family()
                 ver = verify(fam, seg, channel=j, box_check=False)
                 proof = prove_validity(fam, self.parametrization, keep=self.used_coords,
-                                       values=self.value_form, ceiling=self._ceiling(j))
+                                       values=self.value_form, ceiling=self._ceiling(j),
+                                       envelope=self._proof_envelope(j))
                 self.__dict__.setdefault("_proofs", {})[id(fam)] = proof
                 self._checks[id(fam)] = self._checks.get(id(rf))
                 if ver.n_violations == 0 and np.isfinite(ver.linf) and proof.proved:
@@ -1605,7 +1640,7 @@ class BRDFFitter(RationalFitter):
             return ver
         keep = self.used_coords
         chk = check_validity(rf, self.parametrization, keep=keep, values=self.value_form,
-                             ceiling=self._ceiling(j))
+                             ceiling=self._ceiling(j), envelope=self._proof_envelope(j))
         if chk is None:  # nothing says what is valid: the plain box check decides
             return ver if box_checked else verify(rf, seg, channel=j)
         if chk.valid:
@@ -1615,7 +1650,7 @@ class BRDFFitter(RationalFitter):
             # the full proof (:meth:`_proved`), which alone makes it a success.
             final = self._final_proof or j in self._final_channels
             proof = prove_validity(rf, self.parametrization, keep=keep, values=self.value_form,
-                                   ceiling=self._ceiling(j),
+                                   ceiling=self._ceiling(j), envelope=self._proof_envelope(j),
                                    max_boxes=40_000 if final else SEARCH_PROOF_BOXES)
             self.__dict__.setdefault("_proofs", {})[id(rf)] = proof
             if not proof.proved and (final or proof.refuted):

@@ -96,7 +96,8 @@ BRDF_OPTIONS = extend_spec(
     Option("envelope", "bool", None,
            "Fits of log values: the search's and the polish's validity rows keep p / q "
            "under the samples' envelope over theta_h (ratfit.brdf.fitter.ThetaHEnvelope), "
-           "not only under the channel's ceiling; None: for scattered measurements "
+           "not only under the channel's ceiling, and the validity proof proves it "
+           "(ratfit.brdf.validity.StepCeiling); None: for scattered measurements "
            "(ratfit.brdf.fitter.fit_brdf decides).", cli=False),
     Option("used_coords", "indices", None,
            "Coordinates of the parametrization the data holds (None: all).",

@@ -38,6 +38,7 @@ from ratfit.errors import InputError
 from ratfit.io.fitfile import ceiling_bound, proof_ceiling
 
 __all__ = [
+    "StepCeiling",
     "ValidityCheck",
     "ValidityProof",
     "angle_grid",
@@ -179,11 +180,12 @@ class ValidityCheck:
 def check_validity(rf: RationalFunction, param: str, domain: ArrayLike | None = None,
                    points: int = 150_000, starts: int = 24,
                    keep: ArrayLike | None = None,
-                   values: str = "linear", ceiling: float | None = None
-                   ) -> ValidityCheck | None:
+                   values: str = "linear", ceiling: float | None = None,
+                   envelope: StepCeiling | None = None) -> ValidityCheck | None:
     """Dense, adaptive check that q > 0 and p >= 0 on valid configurations in ``domain``
     (for ``values="log"``, where the fit is exp(p / q) > 0 wherever q > 0: q > 0 and,
-    with a ``ceiling`` C, C q - p >= 0, so that the value is at most exp(C)).
+    with a ``ceiling`` C, C q - p >= 0, so that the value is at most exp(C); with an
+    ``envelope`` too, C(theta_h) q - p >= 0 with C the lower of the two at each point).
 
     A grid of direction pairs offset from :func:`configurations`' (so the
     constraint grid proves nothing here), then a compass search in angle space
@@ -202,7 +204,7 @@ def check_validity(rf: RationalFunction, param: str, domain: ArrayLike | None = 
         return ValidityCheck(True, 0, np.inf, np.inf, np.zeros((0, dom.shape[0])),
                              "no direction pair in the domain")
     q = rf.denominator(c)
-    second = _second(rf, values, ceiling)
+    second = _second(rf, values, ceiling, envelope)
     numerator = second is not None
     # without a condition on p (a log fit without a ceiling) p counts as positive
     # wherever q is
@@ -261,16 +263,24 @@ def _check_grid(p: Parametrization, dom: Array, cols: NDArray[np.int64],
     return hit
 
 
-def _second(rf: RationalFunction, values: str, ceiling: float | None
-            ) -> Callable[[Array], Array] | None:
-    """The polynomial a valid fit keeps >= 0 beside q: p (values), C q - p (log values
-    under a ceiling C: exp(p / q) <= exp(C)), or None (log values without one)."""
+def _second(rf: RationalFunction, values: str, ceiling: float | None,
+            envelope: StepCeiling | None = None) -> Callable[[Array], Array] | None:
+    """The function a valid fit keeps >= 0 beside q: p (values), C q - p (log values
+    under a ceiling C: exp(p / q) <= exp(C); under an ``envelope`` too, C the lower of
+    the two at each point's theta_h), or None (log values without one)."""
     if values != "log":
         return rf.numerator
     if ceiling is None:
         return None
     c_top = float(ceiling)
-    return lambda x: c_top * rf.denominator(x) - rf.numerator(x)
+    if envelope is None:
+        return lambda x: c_top * rf.denominator(x) - rf.numerator(x)
+
+    def below(x: Array) -> Array:
+        c = np.minimum(envelope.at(np.asarray(x)[:, envelope.column]), c_top)
+        return c * rf.denominator(x) - rf.numerator(x)
+
+    return below
 
 
 def _compass(rf: RationalFunction, p: Parametrization, dom: Array, a0: Array, v0: Array,
@@ -318,6 +328,95 @@ def _compass(rf: RationalFunction, p: Parametrization, dom: Array, a0: Array, v0
     return evals, (np.concatenate(bad) if bad else np.zeros((0, dom.shape[0])))
 
 
+# ------------------------------------------------------------------ envelope ceiling
+@dataclass(frozen=True)
+class StepCeiling:
+    """A ceiling of a log fit that falls with theta_h in steps: p / q <= C(t) at
+    theta_h = t, with C(t) = ``log_ceiling[k]``, k the number of ``theta_h`` breakpoints
+    below t. Proved with the validity proof where a fit file states one, so that no
+    value anywhere exceeds what the samples at that elevation or beyond allow.
+    ``column``: theta_h's column among the fit's coordinates."""
+
+    column: int
+    theta_h: Array
+    log_ceiling: Array
+
+    def __post_init__(self) -> None:
+        t = np.asarray(self.theta_h, dtype=float)
+        v = np.asarray(self.log_ceiling, dtype=float)
+        if (t.ndim != 1 or v.ndim != 1 or v.size != t.size + 1 or not np.all(np.isfinite(t))
+                or not np.all(np.isfinite(v)) or np.any(np.diff(t) <= 0)
+                or np.any(np.diff(v) > 0) or int(self.column) < 0):
+            raise ValueError("a step ceiling needs ascending breakpoints, one more "
+                             "non-increasing finite value, and a column >= 0")
+        object.__setattr__(self, "theta_h", t)
+        object.__setattr__(self, "log_ceiling", v)
+
+    @classmethod
+    def of_samples(cls, column: int, theta_h: ArrayLike, top: ArrayLike, slack: float,
+                   factor: float) -> StepCeiling:
+        """log(``factor`` x the largest of ``top`` among the samples with theta_h >=
+        t - ``slack``) (past the farthest sample: that sample's own)."""
+        th = np.asarray(theta_h, dtype=float)
+        order = np.argsort(th, kind="stable")
+        th = th[order]
+        beyond = np.maximum.accumulate(np.asarray(top, dtype=float)[order][::-1])[::-1]
+        # the value falls where t - slack passes a sample that held the maximum
+        falls = np.flatnonzero(beyond[1:] < beyond[:-1])
+        breaks = th[falls] + slack
+        values = np.log(factor * np.concatenate([beyond[:1], beyond[falls + 1]]))
+        keep = np.concatenate([[True], np.diff(breaks) > 0]) if breaks.size else breaks > 0
+        # (samples at one elevation fall together: the last of their values holds)
+        if breaks.size and not keep.all():
+            idx = np.flatnonzero(keep)
+            last = np.concatenate([idx[1:] - 1, [breaks.size - 1]])
+            breaks = breaks[idx]
+            values = np.concatenate([values[:1], values[1:][last]])
+        return cls(int(column), breaks, values)
+
+    def at(self, theta_h: ArrayLike) -> Array:
+        """C at each elevation in ``theta_h``."""
+        k = np.searchsorted(self.theta_h, np.asarray(theta_h, dtype=float), side="left")
+        return self.log_ceiling[k]
+
+    def of_pieces(self, space: PolynomialSpace) -> Callable[[Array, Array],
+                                                              tuple[Array, NDArray[np.bool_]]]:
+        """:func:`~ratfit.core.positivity.prove_below`'s bound on pieces of ``space``'s
+        window: C at the piece's largest theta_h (C falls), rounded outward, and whether
+        C is that value all over the piece."""
+        a, b = (float(v) for v in space.domain[self.column])
+        half = 0.5 * (b - a)
+
+        def bound(lo: Array, hi: Array) -> tuple[Array, NDArray[np.bool_]]:
+            t_lo = a + (lo[:, self.column] + 1.0) * half
+            t_hi = a + (hi[:, self.column] + 1.0) * half
+            pad = 1e-12 * (1.0 + np.abs(t_hi))
+            c = self.at(t_hi + pad)
+            return c, self.at(t_lo - pad) == c
+
+        return bound
+
+    def to_dict(self) -> dict[str, object]:
+        return {"coordinate": "theta_h", "column": int(self.column),
+                "theta_h": self.theta_h.tolist(), "log_ceiling": self.log_ceiling.tolist()}
+
+    @classmethod
+    def from_dict(cls, entry: object) -> StepCeiling | None:
+        """The step ceiling a proof entry states, or None where it states none or an
+        entry that is not one (a hand-edited file proves nothing by its word)."""
+        env = entry.get("envelope") if isinstance(entry, dict) else None
+        if not isinstance(env, dict):
+            return None
+        try:
+            col = env["column"]
+            if isinstance(col, bool) or not isinstance(col, int):
+                return None
+            return cls(col, np.asarray(env["theta_h"], dtype=float),
+                       np.asarray(env["log_ceiling"], dtype=float))
+        except (KeyError, TypeError, ValueError):
+            return None
+
+
 # --------------------------------------------------------------------------- proof
 @dataclass(frozen=True)
 class ValidityProof:
@@ -341,6 +440,8 @@ class ValidityProof:
     # log values: C with C q - p >= 0 proved (``p`` holds that proof), so the value is at
     # most exp(C); None: no upper bound (files written before it)
     ceiling: float | None = None
+    # log values: a ceiling that falls with theta_h, proved with C as min(C(theta_h), C)
+    envelope: StepCeiling | None = None
 
     @property
     def refuted(self) -> bool:
@@ -350,9 +451,13 @@ class ValidityProof:
     def summary(self) -> str:
         state = "proved" if self.proved else "NOT PROVED"
         if self.values == "log" and self.ceiling is not None:
+            env = "" if self.envelope is None else (
+                f", and under the samples' envelope over theta_h "
+                f"({self.envelope.theta_h.size + 1} steps, down to "
+                f"{ceiling_bound(float(self.envelope.log_ceiling[-1])):.3g})")
             return (f"{state}: q > 0 {self.q.summary()}; the value exp(p/q) > 0 wherever "
-                    f"q > 0, and at most {ceiling_bound(self.ceiling):.6g}: "
-                    f"{self.ceiling:.6g} q - p >= 0 {self.p.summary()}; region: {self.region}")
+                    f"q > 0, and at most {ceiling_bound(self.ceiling):.6g}{env}: "
+                    f"C q - p >= 0 {self.p.summary()}; region: {self.region}")
         if self.values == "log":
             return (f"{state}: q > 0 {self.q.summary()}; the value exp(p/q) > 0 wherever "
                     f"q > 0; region: {self.region}")
@@ -366,6 +471,8 @@ class ValidityProof:
                     "ceiling": self.ceiling,
                     "value_bound": (ceiling_bound(self.ceiling)
                                     if np.isfinite(ceiling_bound(self.ceiling)) else None),
+                    **({} if self.envelope is None else
+                       {"envelope": self.envelope.to_dict()}),
                     "boxes": self.q.boxes + self.p.boxes}
         if self.values == "log":
             return {"proved": self.proved, "method": self.q.method, "region": self.region,
@@ -456,12 +563,14 @@ _EXCLUDERS = {"RUSIN_TH_TD_PD": _rusin_excluder, "RUSIN_TH_TD_SYM": _sym_exclude
 
 def prove_validity(rf: RationalFunction, param: str, keep: ArrayLike | None = None,
                    max_boxes: int = 40_000, values: str = "linear",
-                   ceiling: float | None = None) -> ValidityProof:
+                   ceiling: float | None = None,
+                   envelope: StepCeiling | None = None) -> ValidityProof:
     """Prove q > 0 and p >= 0 of ``rf`` (in its family form) on the evaluated region,
     examining at most ``max_boxes`` pieces for each of q and p. ``values="log"``: the
     fit's value is exp(p / q), positive wherever q > 0; with a ``ceiling`` C, C q - p > 0
-    is proved too (the value stays below exp(C)), else q > 0 alone."""
-    from ratfit.core.positivity import prove_positive
+    is proved too (the value stays below exp(C)), else q > 0 alone; with an
+    ``envelope`` as well, min(C(theta_h), C) q - p > 0 (:func:`prove_below`)."""
+    from ratfit.core.positivity import prove_below, prove_positive
 
     space = rf.space
     fam = rf.to_family()
@@ -485,8 +594,23 @@ def prove_validity(rf: RationalFunction, param: str, keep: ArrayLike | None = No
         bound = np.zeros(k)
         bound[:len(fam.q)] += float(ceiling) * np.asarray(fam.q, dtype=float)
         bound[:len(fam.p)] -= np.asarray(fam.p, dtype=float)
-        pp = prove_positive(sign * space.tensor_coef(bound), fam_name, strict=True,
-                            exclude=exclude, max_boxes=max_boxes)
+        if envelope is None:
+            pp = prove_positive(sign * space.tensor_coef(bound), fam_name, strict=True,
+                                exclude=exclude, max_boxes=max_boxes)
+        else:
+            # the same padded graded vectors, one tensor each: C varies from piece to piece
+            qk, pk = np.zeros(k), np.zeros(k)
+            qk[:len(fam.q)] = np.asarray(fam.q, dtype=float)
+            pk[:len(fam.p)] = np.asarray(fam.p, dtype=float)
+            of_piece = envelope.of_pieces(space)
+            top = float(ceiling)
+
+            def under(lo: Array, hi: Array) -> tuple[Array, NDArray[np.bool_]]:
+                c, exact = of_piece(lo, hi)
+                return np.minimum(c, top), exact
+
+            pp = prove_below(sign * space.tensor_coef(qk), sign * space.tensor_coef(pk),
+                             fam_name, under, exclude=exclude, max_boxes=max_boxes)
     elif values == "log":
         pp = SignProof(True, np.inf, 1.0, False, np.zeros((0, space.dim)), 0,
                        "not needed: exp(p/q) > 0")
@@ -495,8 +619,9 @@ def prove_validity(rf: RationalFunction, param: str, keep: ArrayLike | None = No
                             max_boxes=max_boxes)
     pts = [space.from_window(s.points) for s in (qp, pp) if len(s.points)]
     bad = np.concatenate(pts) if pts else np.zeros((0, space.dim))
-    return ValidityProof(qp.proved and pp.proved, qp, pp, region, bad, values,
-                         None if values != "log" or ceiling is None else float(ceiling))
+    top_c = float(ceiling) if values == "log" and ceiling is not None else None
+    return ValidityProof(qp.proved and pp.proved, qp, pp, region, bad, values, top_c,
+                         None if top_c is None else envelope)
 
 
 def reprove_saved(saved: object) -> bool | None:
@@ -517,7 +642,11 @@ def reprove_saved(saved: object) -> bool | None:
     values = str(meta.get("values", "linear"))
     proofs = meta.get("proof")
     entries = proofs if isinstance(proofs, list) else []
+    stated = [entries[j] if j < len(entries) else None for j in range(len(channels))]
+    envelopes = [StepCeiling.from_dict(e) for e in stated]
+    if any(isinstance(e, dict) and "envelope" in e and env is None
+           for e, env in zip(stated, envelopes, strict=True)):
+        return False  # an envelope the file states but no ceiling can be read from
     return all(prove_validity(ch.rational, p.name, keep=keep, values=values,
-                              ceiling=proof_ceiling(entries[j] if j < len(entries) else None)
-                              ).proved
+                              ceiling=proof_ceiling(stated[j]), envelope=envelopes[j]).proved
                for j, ch in enumerate(channels))

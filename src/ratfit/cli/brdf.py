@@ -134,12 +134,13 @@ def _split_channels(values: tuple[str, ...]) -> list[str]:
                    "measurements with no width option (or --abs-width auto alone), else "
                    "linear.")
 @click.option("--envelope/--no-envelope", "envelope", default=None,
-              help="Fits of log values (p / q fits have no ceiling): keep p / q at every "
-                   "validity point under twice the largest upper end among the samples as "
-                   "far from the mirror direction (theta_h, less 0.05 rad) or farther, not "
-                   "only under twice the channel's largest (the proved bound). Default: on "
-                   "for scattered measurements, whose unsampled pairs a fit may otherwise "
-                   "fill with highlights; off for a full MERL table.")
+              help="Fits of log values (p / q fits have no ceiling): keep p / q under "
+                   "twice the largest upper end among the samples as far from the mirror "
+                   "direction (theta_h, less 0.05 rad at the search's points) or farther, "
+                   "and prove it (less 0.1 rad) on the whole evaluated region, not only "
+                   "twice the channel's largest. Default: on for scattered measurements, "
+                   "whose unsampled pairs a fit may otherwise fill with highlights; off "
+                   "for a full MERL table.")
 @click.option("--shared-denominator", "shared", is_flag=True,
               help="One denominator q for every channel, one numerator p_c per channel: "
                    "minimises sum(n_c) + m (--m fixes q's size, --max-total bounds each "

@@ -30,7 +30,7 @@ from functools import lru_cache
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-__all__ = ["SignProof", "bernstein_matrix", "prove_positive"]
+__all__ = ["SignProof", "bernstein_matrix", "prove_below", "prove_positive"]
 
 Array = NDArray[np.float64]
 _U = 2.0**-53  # unit roundoff of float64
@@ -188,30 +188,82 @@ def prove_positive(coef: ArrayLike, family: str, *, strict: bool = True,
     C = np.asarray(coef, dtype=float)
     if C.ndim == 0:
         C = C.reshape(1)
-    d = C.ndim
-    if not np.all(np.isfinite(C)):
+
+    def same(lo: Array, hi: Array, B: list[Array], E: list[Array]
+             ) -> tuple[Array, Array, NDArray[np.bool_]]:
+        return B[0], E[0], np.ones(len(lo), dtype=bool)
+
+    return _subdivide([C], family, same, strict, exclude, max_boxes, min_width, report)
+
+
+def prove_below(q_coef: ArrayLike, p_coef: ArrayLike, family: str,
+                bound: Callable[[Array, Array], tuple[Array, NDArray[np.bool_]]], *,
+                exclude: Callable[[Array, Array], NDArray[np.bool_]] | None = None,
+                max_boxes: int = 40_000, min_width: float = 1e-7,
+                report: int = 64) -> SignProof:
+    """Prove C(x) q - p > 0 on [-1, 1]^d for a bound C that varies over the box (so
+    p / q < C(x) wherever q > 0): ``bound(lo, hi)`` gives each piece (window corners)
+    a number c at most C's smallest value on it, and whether C equals c all over the
+    piece. A piece is proved when c q - p is; a corner where c q - p <= 0 is a
+    counterexample only on a piece where C is c throughout (elsewhere the piece is
+    halved again). ``q_coef`` and ``p_coef``: dense tensors of one shape, as
+    :func:`prove_positive` takes. A step bound of one coordinate (the samples' envelope
+    over theta_h) makes C q - p no polynomial, so no single Bernstein form proves it."""
+    Q = np.asarray(q_coef, dtype=float)
+    P = np.asarray(p_coef, dtype=float)
+    if Q.shape != P.shape:
+        raise ValueError(f"q and p tensors differ in shape: {Q.shape} and {P.shape}")
+
+    def combined(lo: Array, hi: Array, B: list[Array], E: list[Array]
+                 ) -> tuple[Array, Array, NDArray[np.bool_]]:
+        c, exact = bound(lo, hi)
+        c = np.asarray(c, dtype=float).reshape((-1,) + (1,) * (B[0].ndim - 1))
+        cq = c * B[0]  # one rounding each: the product, then the difference
+        out = cq - B[1]
+        err = (np.abs(c) * E[0] + E[1] + _U * (np.abs(cq) + np.abs(out))) * _SAFETY
+        return out, err, np.asarray(exact, dtype=bool)
+
+    return _subdivide([Q, P], family, combined, True, exclude, max_boxes, min_width,
+                      report)
+
+
+def _subdivide(coefs: list[Array], family: str,
+               combine: Callable[[Array, Array, list[Array], list[Array]],
+                                 tuple[Array, Array, NDArray[np.bool_]]],
+               strict: bool, exclude: Callable[[Array, Array], NDArray[np.bool_]] | None,
+               max_boxes: int, min_width: float, report: int) -> SignProof:
+    """The subdivision of :func:`prove_positive` on the Bernstein forms of ``coefs``
+    (one shape), halved together; ``combine(lo, hi, Bs, Es)`` gives each piece's
+    coefficients and error bounds of the polynomial to prove, and where its corner
+    values may count as counterexamples."""
+    d = coefs[0].ndim
+    if not all(np.all(np.isfinite(C)) for C in coefs):
         return SignProof(False, -math.inf, math.inf, True, np.zeros((1, d)), 0,
                          "Bernstein bounds (non-finite coefficient)")
-    B, E = _to_bernstein(family, C)
+    forms = [_to_bernstein(family, C) for C in coefs]
+    Bs = [f[0][None] for f in forms]
+    Es = [f[1][None] for f in forms]
     lo = np.full((1, d), -1.0)
     hi = np.full((1, d), 1.0)
-    B, E = B[None], E[None]
-    scale = float(np.max(np.abs(B)))
     method = "Bernstein bounds with subdivision"
+    B0, _E0, _exact = combine(lo, hi, Bs, Es)
+    scale = float(np.max(np.abs(B0)))
     if scale == 0.0:
         return SignProof(not strict, 0.0, 0.0, strict, np.zeros((1, d)), 1, method)
-    cap = max(16, int(4e7 // max(1, B[0].size * 8)))  # boxes per batch (memory)
+    cap = max(16, int(4e7 // max(1, Bs[0][0].size * 8 * len(Bs))))  # boxes per batch
     boxes = 0
     proved_low = math.inf
     while True:
         if exclude is not None:
             drop = np.asarray(exclude(lo, hi), dtype=bool)
             if drop.any():
-                B, E, lo, hi = B[~drop], E[~drop], lo[~drop], hi[~drop]
-                if len(B) == 0:
+                Bs, Es = [b[~drop] for b in Bs], [e[~drop] for e in Es]
+                lo, hi = lo[~drop], hi[~drop]
+                if len(lo) == 0:
                     return SignProof(True, proved_low, scale, False, np.zeros((0, d)),
                                      boxes, method)
-        boxes += len(B)
+        boxes += len(lo)
+        B, E, exact = combine(lo, hi, Bs, Es)
         flat_b = B.reshape(len(B), -1)
         flat_e = E.reshape(len(B), -1)
         low = np.min(flat_b - flat_e, axis=1)
@@ -222,18 +274,21 @@ def prove_positive(coef: ArrayLike, family: str, *, strict: bool = True,
         ce = _corners(E)
         # a corner coefficient is the value there: provably < 0 (or <= 0 when strict)
         neg = (cb + ce <= 0) if strict else (cb + ce < 0)
+        neg &= exact[:, None]
         if exclude is not None and neg.any():  # a corner outside the region proves nothing
             rows, cols = np.nonzero(neg)
             pts = _corner_points(lo[rows], hi[rows], np.ones((len(rows), neg.shape[1]), bool))
             pts = pts.reshape(len(rows), neg.shape[1], d)[np.arange(len(rows)), cols]
-            neg[rows[np.asarray(exclude(pts, pts), dtype=bool)],
-                cols[np.asarray(exclude(pts, pts), dtype=bool)]] = False
+            outside = np.asarray(exclude(pts, pts), dtype=bool)
+            neg[rows[outside], cols[outside]] = False
         bad = neg.any(axis=1)
         if bad.any():
             pts = _corner_points(lo[bad], hi[bad], neg[bad])[:report]
             return SignProof(False, float(np.min(cb[bad])), scale, True, pts, boxes, method)
-        B, E, lo, hi, low = B[~ok], E[~ok], lo[~ok], hi[~ok], low[~ok]
-        if len(B) == 0:
+        keep = ~ok
+        Bs, Es = [b[keep] for b in Bs], [e[keep] for e in Es]
+        lo, hi, low = lo[keep], hi[keep], low[keep]
+        if len(lo) == 0:
             return SignProof(True, proved_low, scale, False, np.zeros((0, d)), boxes, method)
         width = hi - lo
         if boxes >= max_boxes or float(np.max(width)) < min_width:
@@ -246,35 +301,40 @@ def prove_positive(coef: ArrayLike, family: str, *, strict: bool = True,
             ]))
             pts = 0.5 * (lo[pick] + hi[pick])
             return SignProof(False, float(np.min(low)), scale, False, pts, boxes, method)
-        if len(B) > cap:  # the lowest bounds first; the rest wait
+        if len(lo) > cap:  # the lowest bounds first; the rest wait
             order = np.argsort(low)
             rest = order[cap:]
-            wait = (B[rest], E[rest], lo[rest], hi[rest])
+            wait = ([b[rest] for b in Bs], [e[rest] for e in Es], lo[rest], hi[rest])
             now = order[:cap]
-            B, E, lo, hi = B[now], E[now], lo[now], hi[now]
+            Bs, Es, lo, hi = [b[now] for b in Bs], [e[now] for e in Es], lo[now], hi[now]
         else:
             wait = None
         # each piece is halved along its widest side
         axis_of = np.argmax(hi - lo, axis=1)
-        nb, ne, nlo, nhi = [], [], [], []
+        nbs: list[list[Array]] = [[] for _ in Bs]
+        nes: list[list[Array]] = [[] for _ in Bs]
+        nlo, nhi = [], []
         for ax in np.unique(axis_of):
             sel = axis_of == ax
-            L, LE, R, RE = _split(B[sel], E[sel], int(ax) + 1)
+            for k in range(len(Bs)):
+                L, LE, R, RE = _split(Bs[k][sel], Es[k][sel], int(ax) + 1)
+                nbs[k] += [L, R]
+                nes[k] += [LE, RE]
             mid = 0.5 * (lo[sel, ax] + hi[sel, ax])
             llo, lhi = lo[sel].copy(), hi[sel].copy()
             lhi[:, ax] = mid
             rlo, rhi = lo[sel].copy(), hi[sel].copy()
             rlo[:, ax] = mid
-            nb += [L, R]
-            ne += [LE, RE]
             nlo += [llo, rlo]
             nhi += [lhi, rhi]
         if wait is not None:
-            nb.append(wait[0])
-            ne.append(wait[1])
+            for k in range(len(Bs)):
+                nbs[k].append(wait[0][k])
+                nes[k].append(wait[1][k])
             nlo.append(wait[2])
             nhi.append(wait[3])
-        B, E = np.concatenate(nb), np.concatenate(ne)
+        Bs = [np.concatenate(b) for b in nbs]
+        Es = [np.concatenate(e) for e in nes]
         lo, hi = np.concatenate(nlo), np.concatenate(nhi)
 
 

@@ -755,10 +755,14 @@ def scope_text(saved: SavedFit, reproved: bool | None = None) -> str:
             tops = [proof_ceiling(p) for p in proofs]
             bounds = [ceiling_bound(c) for c in tops if c is not None]
             if len(bounds) == len(tops) and all(math.isfinite(v) for v in bounds):
+                # (reprove_saved refuses an envelope entry it cannot read)
+                under = (", and under the samples' envelope over theta_h (its steps in "
+                         "the fit file)" if all(isinstance(p.get("envelope"), dict)
+                                                for p in proofs) else "")
                 return ("Verified at every sample of its data; q > 0 and exp(p/q) <= "
                         + " / ".join(f"{v:.4g}" for v in bounds)
-                        + " (per channel) proved where it is evaluated (Bernstein bounds, as "
-                          "the fit file records).")
+                        + f" (per channel){under} proved where it is evaluated (Bernstein "
+                          "bounds, as the fit file records).")
             return ("Verified at every sample of its data; q > 0 proved where it is "
                     "evaluated (Bernstein bounds, as the fit file records), so exp(p/q) is "
                     "positive there; no upper bound is proved.")
