@@ -9,8 +9,10 @@ before its clamp at 0). Per channel it prints the smallest value of each, the co
 negative or non-finite values, the largest relative difference of the C export and the
 material from ``eval_dirs``, the spread over phi_d at theta_h = 0 (an isotropic BRDF does
 not depend on phi_d there), the proof stored in the fit file, the largest value
-``eval_dirs`` gave beside the upper bound the proof states (a fit of log values), and the
-seconds each took.
+``eval_dirs`` gave beside the upper bound the proof states (a fit of log values), the
+largest ratio of a value to the samples' envelope over theta_h the proof states (a
+scattered log fit's steps, at the theta_h where the fit is evaluated), and the seconds
+each took.
 
     python benchmarks/bench_validity.py FIT.json [FIT2.json ...] [--pairs 1000000]
 """
@@ -87,6 +89,7 @@ def phi_d_spread(fit, k: int = 2000) -> np.ndarray:
 
 def main() -> None:
     from ratfit.brdf.fitter import load_brdf_fit
+    from ratfit.brdf.validity import StepCeiling
     from ratfit.render.material import FitMaterial
 
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
@@ -109,16 +112,20 @@ def main() -> None:
         t_mat = time.perf_counter() - t0
         cv, t_c = c_values(path, L, V)
         spread = phi_d_spread(fit)
+        kept = np.delete(fit.coords(L, V)[0], list(fit.dropped), axis=1)
         for j, name in enumerate(fit.channel_names):
             r = ref[:, j]
             scale = np.maximum(np.abs(r), 1e-12 * np.max(np.abs(r)))
             bad = int(np.sum(~np.isfinite(r) | (r < 0)) + np.sum(~np.isfinite(cv[:, j])
                                                                   | (cv[:, j] < 0)))
             pr = proofs[j] if j < len(proofs) else None
+            steps = StepCeiling.from_dict(pr)
+            env = "-" if steps is None else \
+                f"{np.max(r / np.exp(steps.at(kept[:, steps.column]))):.3g}"
             rows.append([
                 f"{path.stem}", name, f"{np.min(r):.4g}", f"{np.min(cv[:, j]):.4g}",
                 f"{np.min(mat[:, j]):.4g}", str(bad), f"{np.max(r):.4g}",
-                f"{pr['value_bound']:.4g}" if pr and pr.get("value_bound") else "-",
+                f"{pr['value_bound']:.4g}" if pr and pr.get("value_bound") else "-", env,
                 f"{np.max(np.abs(cv[:, j] - r) / scale):.1e}",
                 f"{np.max(np.abs(mat[:, j] - r) / scale):.1e}", f"{spread[j]:.1e}",
                 "yes" if pr and pr.get("proved") else "no",
@@ -126,10 +133,12 @@ def main() -> None:
                 f"{t_eval:.2f}/{t_c:.2f}/{t_mat:.2f}"])
     rep.table(f"{args.pairs} random pairs over the hemisphere (seed {args.seed})",
               ["fit", "ch", "min eval", "min C", "min plugin", "neg|nonfinite", "max eval",
-               "proved bound", "C vs eval", "plugin vs eval", "phi_d spread th_h=0",
-               "proved", "q margin", "s eval/C/plugin"], rows,
+               "proved bound", "max / envelope", "C vs eval", "plugin vs eval",
+               "phi_d spread th_h=0", "proved", "q margin", "s eval/C/plugin"], rows,
               note="proved bound: the largest value the proof allows (fits of log values: "
-                   "exp(p/q) <= twice the largest segment end); '-': none stated.")
+                   "exp(p/q) <= twice the largest segment end); max / envelope: the "
+                   "largest value over the proved envelope at its theta_h (at most 1 "
+                   "where proved); '-': none stated.")
     rep.write()
 
 
