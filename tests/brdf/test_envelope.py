@@ -166,9 +166,17 @@ def test_log_fits_prove_their_envelope_and_a_file_is_proved_again(tmp_path) -> N
     stated = saved.extra["brdf"]["proof"][0]["envelope"]
     stated["log_ceiling"] = [min(stated["log_ceiling"]) - 8.0] * len(stated["log_ceiling"])
     assert reprove_saved(saved) is False
-    # an envelope the file states but that cannot be read proves nothing
+    # an envelope the file states but that cannot be read proves nothing, nor one
+    # over another coordinate than theta_h
     saved.extra["brdf"]["proof"][0]["envelope"] = {"column": 0}
     assert reprove_saved(saved) is False
+    for column in (1, 7):
+        saved.extra["brdf"]["proof"][0]["envelope"] = StepCeiling(
+            column, np.array([0.5]), np.array([9.0, 8.0])).to_dict()
+        assert reprove_saved(saved) is False
+    saved.extra["brdf"]["proof"][0]["envelope"] = StepCeiling(
+        0, np.array([0.5]), np.array([50.0, 40.0])).to_dict()
+    assert reprove_saved(saved) is True  # a looser one is proved from the same numbers
 
 
 @pytest.mark.slow

@@ -647,6 +647,12 @@ def reprove_saved(saved: object) -> bool | None:
     if any(isinstance(e, dict) and "envelope" in e and env is None
            for e, env in zip(stated, envelopes, strict=True)):
         return False  # an envelope the file states but no ceiling can be read from
+    # an envelope's column is theta_h's among the coordinates the fit keeps
+    kept = list(range(p.dim)) if keep is None else [int(k) for k in keep]
+    th = p.coords.index("theta_h") if "theta_h" in p.coords else None
+    if any(env is not None and (th not in kept or env.column != kept.index(th))
+           for env in envelopes):
+        return False
     return all(prove_validity(ch.rational, p.name, keep=keep, values=values,
                               ceiling=proof_ceiling(stated[j]), envelope=envelopes[j]).proved
                for j, ch in enumerate(channels))
