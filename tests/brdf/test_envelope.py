@@ -19,7 +19,6 @@ from ratfit.brdf.fitter import (
     ENVELOPE_SLACK,
     LOG_CEILING_FACTOR,
     BRDFFitter,
-    ThetaHEnvelope,
     brdf_segments,
     fit_brdf,
     theta_h_column,
@@ -32,15 +31,28 @@ from ratfit.core.positivity import prove_below
 from ratfit.io.fitfile import load_fit, scope_text
 
 
+def _by_hand(theta_h, top, t, slack):
+    """log(2 x the largest top among the samples with theta_h >= t - slack), the
+    farthest sample's past them all: the envelope, one point at a time."""
+    th, top = np.asarray(theta_h, float), np.asarray(top, float)
+    out = []
+    for v in np.atleast_1d(t):
+        near = th >= v - slack
+        out.append(np.log(LOG_CEILING_FACTOR * (top[near].max() if near.any()
+                                                else top[np.argmax(th)])))
+    return np.array(out)
+
+
 def test_the_envelope_is_the_largest_upper_end_at_least_as_far_from_the_mirror() -> None:
-    env = ThetaHEnvelope([1.0, 0.0, 0.5, 0.1], [0.5, 100.0, 1.0, 10.0], slack=0.05)
+    env = StepCeiling.of_samples(0, [1.0, 0.0, 0.5, 0.1], [0.5, 100.0, 1.0, 10.0],
+                                 ENVELOPE_SLACK, LOG_CEILING_FACTOR)
     t = np.array([0.0, 0.16, 0.3, 0.56, 2.0])
     # theta_h >= t - 0.05: all four; 0.5 and 1.0 (0.1 lies below 0.11); 0.5 and 1.0;
     # 1.0 alone; past the farthest sample, that sample's
     expect = LOG_CEILING_FACTOR * np.array([100.0, 1.0, 1.0, 0.5, 0.5])
-    np.testing.assert_allclose(np.exp(env.log_ceiling(t)), expect, rtol=1e-12)
+    np.testing.assert_allclose(np.exp(env.at(t)), expect, rtol=1e-12)
     # a point within the slack of a sample counts it
-    assert np.exp(env.log_ceiling(0.14)) == pytest.approx(LOG_CEILING_FACTOR * 10.0)
+    assert np.exp(env.at(0.14)) == pytest.approx(LOG_CEILING_FACTOR * 10.0)
     assert ENVELOPE_SLACK == 0.05
 
 
@@ -68,15 +80,15 @@ def test_row_ceilings_are_the_envelope_under_the_channel_ceiling() -> None:
     f = BRDFFitter(parametrization="RUSIN_TH_TD_SYM", values="log", envelope=True)
     seg = brdf_segments(ds, dt=WIDTHS["dt"], abs_width=WIDTHS["abs_width"])
     f._ceilings = np.log(LOG_CEILING_FACTOR * seg.hi.max(axis=0))
-    f._envelopes = f._theta_h_envelopes(seg)
+    f._envelopes = f._theta_h_envelopes(seg, ENVELOPE_SLACK)
     pts = np.array([[0.0018, 0.5, 0.0], [0.6, 0.5, 0.0], [1.3, 0.5, 0.0]])
     rows = f._row_ceiling(0, pts)
-    env = ThetaHEnvelope(seg.x[:, 0], seg.hi[:, 0]).log_ceiling(pts[:, 0])
+    env = _by_hand(seg.x[:, 0], seg.hi[:, 0], pts[:, 0], ENVELOPE_SLACK)
     np.testing.assert_allclose(rows, np.minimum(env, f._ceilings[0]) - CEILING_ROW_MARGIN)
     assert rows[0] == pytest.approx(f._ceilings[0] - CEILING_ROW_MARGIN)  # the highlight
     assert rows[2] < rows[1] < rows[0]  # the lobe falls off away from the mirror
     f.envelope = False
-    f._envelopes = f._theta_h_envelopes(seg)
+    f._envelopes = f._theta_h_envelopes(seg, ENVELOPE_SLACK)
     assert f._row_ceiling(0, pts) == pytest.approx(f._ceilings[0] - CEILING_ROW_MARGIN)
 
 
@@ -100,13 +112,18 @@ def test_the_step_ceiling_falls_past_each_record_sample_by_its_slack() -> None:
                                 slack=0.1, factor=2.0)
     # the largest end at theta_h >= t - 0.1 falls from 10 past 0.1, from 3 past 0.3
     # (the two samples at 0.2 fall together) and from 0.1 never (the farthest sample)
-    np.testing.assert_allclose(sc.theta_h, [0.1, 0.3])
+    np.testing.assert_allclose(sc.theta_h, [0.0, 0.2])
+    assert sc.slack == 0.1
     np.testing.assert_allclose(np.exp(sc.log_ceiling), [20.0, 6.0, 0.2])
     t = np.array([-1.0, 0.1, 0.1000001, 0.3, 0.31, 5.0])
     np.testing.assert_allclose(np.exp(sc.at(t)), [20.0, 20.0, 6.0, 6.0, 0.2, 0.2])
-    # the rows' envelope with the proof's slack is the same function
-    env = ThetaHEnvelope([0.2, 0.0, 0.5, 0.2], [1.0, 10.0, 0.1, 3.0], slack=0.1)
-    np.testing.assert_allclose(sc.at(t), env.log_ceiling(t), rtol=1e-12)
+    np.testing.assert_allclose(sc.at(t), _by_hand([0.2, 0.0, 0.5, 0.2],
+                                                  [1.0, 10.0, 0.1, 3.0], t, 0.1), rtol=1e-12)
+    # an entry without a slack (commit a74032d wrote the steps with it added) reads as 0
+    old = {"column": 0, "theta_h": [0.1, 0.3], "log_ceiling": sc.log_ceiling.tolist()}
+    before = StepCeiling.from_dict({"envelope": old})
+    assert before is not None and before.slack == 0.0
+    np.testing.assert_array_equal(before.at(t), sc.at(t))
     # a file's entry round-trips; a rising or malformed one is no ceiling
     back = StepCeiling.from_dict({"envelope": sc.to_dict()})
     assert back is not None and back.column == 0
@@ -115,6 +132,7 @@ def test_the_step_ceiling_falls_past_each_record_sample_by_its_slack() -> None:
     bad = sc.to_dict() | {"log_ceiling": [0.0, 1.0, 2.0]}
     assert StepCeiling.from_dict({"envelope": bad}) is None
     assert StepCeiling.from_dict({"envelope": sc.to_dict() | {"column": "0"}}) is None
+    assert StepCeiling.from_dict({"envelope": sc.to_dict() | {"slack": -0.1}}) is None
     assert StepCeiling.from_dict({"ceiling": 3.0}) is None
 
 
@@ -155,8 +173,8 @@ def test_log_fits_prove_their_envelope_and_a_file_is_proved_again(tmp_path) -> N
     # the proved steps are the samples' envelope with the proof's slack
     seg = brdf_segments(ds, dt=WIDTHS["dt"], abs_width=WIDTHS["abs_width"])
     t = np.linspace(0.0, 1.5, 301)
-    env = ThetaHEnvelope(seg.x[:, 0], seg.hi[:, 0], slack=ENVELOPE_PROOF_SLACK)
-    np.testing.assert_allclose(proof.envelope.at(t), env.log_ceiling(t), rtol=1e-12)
+    env = _by_hand(seg.x[:, 0], seg.hi[:, 0], t, ENVELOPE_PROOF_SLACK)
+    np.testing.assert_allclose(proof.envelope.at(t), env, rtol=1e-12)
     path = tmp_path / "fit.json"
     save_brdf_fit(path, fitter.results_, meta)
     saved = load_fit(path)

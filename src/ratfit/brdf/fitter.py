@@ -193,8 +193,8 @@ CEILING_ROW_MARGIN = 0.05
 #: farther (a lobe falls off away from it; retro-reflection and grazing peaks are samples
 #: at large theta_h, so they raise the envelope where they lie).
 ENVELOPE_SLACK = 0.05
-#: The proof holds each fit under the same envelope with twice the slack
-#: (:class:`~ratfit.brdf.validity.StepCeiling`): its pieces are proved against the
+#: The proof holds each fit under the same envelope with twice the slack (both
+#: :class:`~ratfit.brdf.validity.StepCeiling`): its pieces are proved against the
 #: envelope's value at their far end in theta_h, so the rows' envelope, met at points up
 #: to a slack apart, is proved wherever a piece spans at most one slack.
 ENVELOPE_PROOF_SLACK = 2 * ENVELOPE_SLACK
@@ -1045,28 +1045,6 @@ def log_ceilings(seg: Segments) -> Array:
     return np.log(LOG_CEILING_FACTOR * np.asarray(top, dtype=float))
 
 
-class ThetaHEnvelope:
-    """A channel's local ceiling over the half-vector elevation (:data:`ENVELOPE_SLACK`):
-    at theta_h = t, :data:`LOG_CEILING_FACTOR` times the largest of ``top`` (the
-    samples' upper ends) among the samples with theta_h >= t - slack, in log."""
-
-    def __init__(self, theta_h: ArrayLike, top: ArrayLike,
-                 slack: float = ENVELOPE_SLACK) -> None:
-        th = np.asarray(theta_h, dtype=float)
-        order = np.argsort(th, kind="stable")
-        self.theta_h = th[order]
-        # the largest upper end at or beyond each sorted elevation
-        self.beyond = np.maximum.accumulate(np.asarray(top, dtype=float)[order][::-1])[::-1]
-        self.slack = float(slack)
-
-    def log_ceiling(self, theta_h: ArrayLike) -> Array:
-        """log of the envelope at each elevation in ``theta_h`` (past the farthest
-        sample: that sample's own)."""
-        k = np.searchsorted(self.theta_h, np.asarray(theta_h, dtype=float) - self.slack,
-                            side="left")
-        return np.log(LOG_CEILING_FACTOR * self.beyond[np.minimum(k, len(self.beyond) - 1)])
-
-
 def theta_h_column(param: str, used_coords: Sequence[int] | None) -> int | None:
     """The column of theta_h among a fit's coordinates (``used_coords``: the frame's
     columns it keeps), or None where the frame has none."""
@@ -1145,10 +1123,10 @@ class BRDFFitter(RationalFitter):
         frame and for scattered measurements with ratfit's widths).
     envelope : bool or None, default None
         A fit of log values in a frame with theta_h: keep p / q under the samples'
-        envelope over theta_h too, at the search's and the polish's points
-        (:class:`ThetaHEnvelope`) and by the validity proof on the whole region
-        (:data:`ENVELOPE_PROOF_SLACK`). None is off here; :func:`fit_brdf` turns it on
-        for scattered measurements.
+        envelope over theta_h too (:class:`~ratfit.brdf.validity.StepCeiling`), at the
+        search's and the polish's points (:data:`ENVELOPE_SLACK`) and by the validity
+        proof on the whole region (:data:`ENVELOPE_PROOF_SLACK`). None is off here;
+        :func:`fit_brdf` turns it on for scattered measurements.
     used_coords : tuple of int, optional
         The coordinates of the parametrization that the segments' x holds, in
         order (None: all); :func:`fit_brdf` drops constant ones (Cornell's
@@ -1219,8 +1197,8 @@ class BRDFFitter(RationalFitter):
             # segments stay for the last check of exp(p / q) itself
             self._value_segments = segments
             self._ceilings = log_ceilings(segments)
-            self._envelopes = self._theta_h_envelopes(segments)
-            self._step_ceilings = self._proof_envelopes(segments)
+            self._envelopes = self._theta_h_envelopes(segments, ENVELOPE_SLACK)
+            self._step_ceilings = self._theta_h_envelopes(segments, ENVELOPE_PROOF_SLACK)
             segments = log_segments(segments)
         if not self._full_search:
             self._points: dict[int, list[Array]] = {}
@@ -1286,16 +1264,15 @@ class BRDFFitter(RationalFitter):
         """The ceiling the search's and the polish's rows keep at their points:
         :data:`CEILING_ROW_MARGIN` under channel ``j``'s, so that a fit is not refused
         for crossing it between them; with :attr:`envelope`, under the lower of that
-        and the channel's :class:`ThetaHEnvelope` at each of ``points`` (one value each)."""
+        and the channel's envelope (:data:`ENVELOPE_SLACK`) at each of ``points`` (one
+        value each)."""
         top = self._ceiling(j)
         if top is None:
             return None
         env = self.__dict__.get("_envelopes")
         if points is None or env is None:
             return top - CEILING_ROW_MARGIN
-        col = theta_h_column(self.parametrization, self.used_coords)
-        assert col is not None  # an envelope is made only where there is one
-        local = env[j].log_ceiling(np.asarray(points, dtype=float)[:, col])
+        local = env[j].at(np.asarray(points, dtype=float)[:, env[j].column])
         return np.minimum(local, top) - CEILING_ROW_MARGIN
 
     def _proof_envelope(self, j: int) -> StepCeiling | None:
@@ -1303,25 +1280,17 @@ class BRDFFitter(RationalFitter):
         steps = self.__dict__.get("_step_ceilings")
         return None if steps is None else steps[j]
 
-    def _proof_envelopes(self, segments: Segments) -> list[StepCeiling] | None:
-        """Each channel's :class:`~ratfit.brdf.validity.StepCeiling` of the value
-        ``segments`` (:attr:`envelope`, a frame with theta_h), else None."""
+    def _theta_h_envelopes(self, segments: Segments, slack: float
+                           ) -> list[StepCeiling] | None:
+        """Each channel's envelope of the value ``segments`` over theta_h with ``slack``
+        (:attr:`envelope`, a frame with theta_h), else None."""
         from ratfit.brdf.validity import StepCeiling
 
         col = theta_h_column(self.parametrization, self.used_coords)
         if not self.envelope or col is None:
             return None
-        return [StepCeiling.of_samples(col, segments.x[:, col], segments.hi[:, j],
-                                       ENVELOPE_PROOF_SLACK, LOG_CEILING_FACTOR)
-                for j in range(segments.n_channels)]
-
-    def _theta_h_envelopes(self, segments: Segments) -> list[ThetaHEnvelope] | None:
-        """Each channel's :class:`ThetaHEnvelope` of the value ``segments``
-        (:attr:`envelope`, a frame with theta_h), else None."""
-        col = theta_h_column(self.parametrization, self.used_coords)
-        if not self.envelope or col is None:
-            return None
-        return [ThetaHEnvelope(segments.x[:, col], segments.hi[:, j])
+        return [StepCeiling.of_samples(col, segments.x[:, col], segments.hi[:, j], slack,
+                                       LOG_CEILING_FACTOR)
                 for j in range(segments.n_channels)]
 
     def _values_checked(self, res: FitResult, j: int) -> FitResult:

@@ -95,9 +95,9 @@ BRDF_OPTIONS = extend_spec(
            "else linear.", VALUES, cli=False),
     Option("envelope", "bool", None,
            "Fits of log values: the search's and the polish's validity rows keep p / q "
-           "under the samples' envelope over theta_h (ratfit.brdf.fitter.ThetaHEnvelope), "
-           "not only under the channel's ceiling, and the validity proof proves it "
-           "(ratfit.brdf.validity.StepCeiling); None: for scattered measurements "
+           "under the samples' envelope over theta_h (ratfit.brdf.validity.StepCeiling), "
+           "not only under the channel's ceiling, and the validity proof proves it; "
+           "None: for scattered measurements "
            "(ratfit.brdf.fitter.fit_brdf decides).", cli=False),
     Option("used_coords", "indices", None,
            "Coordinates of the parametrization the data holds (None: all).",

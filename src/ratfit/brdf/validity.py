@@ -332,25 +332,30 @@ def _compass(rf: RationalFunction, p: Parametrization, dom: Array, a0: Array, v0
 @dataclass(frozen=True)
 class StepCeiling:
     """A ceiling of a log fit that falls with theta_h in steps: p / q <= C(t) at
-    theta_h = t, with C(t) = ``log_ceiling[k]``, k the number of ``theta_h`` breakpoints
-    below t. Proved with the validity proof where a fit file states one, so that no
-    value anywhere exceeds what the samples at that elevation or beyond allow.
-    ``column``: theta_h's column among the fit's coordinates."""
+    theta_h = t, with C(t) = ``log_ceiling[k]``, k the number of ``theta_h`` elevations
+    below t - ``slack``. Built from the samples (:meth:`of_samples`), it is their
+    envelope: the search's and the polish's rows keep it with one slack, the validity
+    proof proves it with twice that, so that no value anywhere exceeds what the samples
+    at that elevation or beyond allow. ``column``: theta_h's column among the fit's
+    coordinates."""
 
     column: int
     theta_h: Array
     log_ceiling: Array
+    slack: float = 0.0
 
     def __post_init__(self) -> None:
         t = np.asarray(self.theta_h, dtype=float)
         v = np.asarray(self.log_ceiling, dtype=float)
         if (t.ndim != 1 or v.ndim != 1 or v.size != t.size + 1 or not np.all(np.isfinite(t))
                 or not np.all(np.isfinite(v)) or np.any(np.diff(t) <= 0)
-                or np.any(np.diff(v) > 0) or int(self.column) < 0):
-            raise ValueError("a step ceiling needs ascending breakpoints, one more "
-                             "non-increasing finite value, and a column >= 0")
+                or np.any(np.diff(v) > 0) or int(self.column) < 0
+                or not (np.isfinite(self.slack) and self.slack >= 0)):
+            raise ValueError("a step ceiling needs ascending elevations, one more "
+                             "non-increasing finite value, a column >= 0 and a slack >= 0")
         object.__setattr__(self, "theta_h", t)
         object.__setattr__(self, "log_ceiling", v)
+        object.__setattr__(self, "slack", float(self.slack))
 
     @classmethod
     def of_samples(cls, column: int, theta_h: ArrayLike, top: ArrayLike, slack: float,
@@ -363,20 +368,21 @@ class StepCeiling:
         beyond = np.maximum.accumulate(np.asarray(top, dtype=float)[order][::-1])[::-1]
         # the value falls where t - slack passes a sample that held the maximum
         falls = np.flatnonzero(beyond[1:] < beyond[:-1])
-        breaks = th[falls] + slack
+        steps = th[falls]
         values = np.log(factor * np.concatenate([beyond[:1], beyond[falls + 1]]))
-        keep = np.concatenate([[True], np.diff(breaks) > 0]) if breaks.size else breaks > 0
-        # (samples at one elevation fall together: the last of their values holds)
-        if breaks.size and not keep.all():
-            idx = np.flatnonzero(keep)
-            last = np.concatenate([idx[1:] - 1, [breaks.size - 1]])
-            breaks = breaks[idx]
+        if steps.size and np.any(np.diff(steps) == 0):
+            # (samples at one elevation fall together: the last of their values holds)
+            first = np.concatenate([[True], np.diff(steps) > 0])
+            idx = np.flatnonzero(first)
+            last = np.concatenate([idx[1:] - 1, [steps.size - 1]])
+            steps = steps[idx]
             values = np.concatenate([values[:1], values[1:][last]])
-        return cls(int(column), breaks, values)
+        return cls(int(column), steps, values, float(slack))
 
     def at(self, theta_h: ArrayLike) -> Array:
         """C at each elevation in ``theta_h``."""
-        k = np.searchsorted(self.theta_h, np.asarray(theta_h, dtype=float), side="left")
+        k = np.searchsorted(self.theta_h, np.asarray(theta_h, dtype=float) - self.slack,
+                            side="left")
         return self.log_ceiling[k]
 
     def of_pieces(self, space: PolynomialSpace) -> Callable[[Array, Array],
@@ -398,7 +404,8 @@ class StepCeiling:
 
     def to_dict(self) -> dict[str, object]:
         return {"coordinate": "theta_h", "column": int(self.column),
-                "theta_h": self.theta_h.tolist(), "log_ceiling": self.log_ceiling.tolist()}
+                "theta_h": self.theta_h.tolist(), "slack": self.slack,
+                "log_ceiling": self.log_ceiling.tolist()}
 
     @classmethod
     def from_dict(cls, entry: object) -> StepCeiling | None:
@@ -408,11 +415,13 @@ class StepCeiling:
         if not isinstance(env, dict):
             return None
         try:
-            col = env["column"]
-            if isinstance(col, bool) or not isinstance(col, int):
+            # (files of commit a74032d state their steps with the slack added: 0 here)
+            col, slack = env["column"], env.get("slack", 0.0)
+            if any(isinstance(v, bool) for v in (col, slack)) or not isinstance(col, int) \
+                    or not isinstance(slack, (int, float)):
                 return None
             return cls(col, np.asarray(env["theta_h"], dtype=float),
-                       np.asarray(env["log_ceiling"], dtype=float))
+                       np.asarray(env["log_ceiling"], dtype=float), float(slack))
         except (KeyError, TypeError, ValueError):
             return None
 
@@ -591,17 +600,14 @@ def prove_validity(rf: RationalFunction, param: str, keep: ArrayLike | None = No
         # padded), so the proof is about the stored numbers; strict: a margin above the
         # rounding of this one subtraction
         k = max(len(fam.p), len(fam.q))
-        bound = np.zeros(k)
-        bound[:len(fam.q)] += float(ceiling) * np.asarray(fam.q, dtype=float)
-        bound[:len(fam.p)] -= np.asarray(fam.p, dtype=float)
+        qk, pk = np.zeros(k), np.zeros(k)
+        qk[:len(fam.q)] = np.asarray(fam.q, dtype=float)
+        pk[:len(fam.p)] = np.asarray(fam.p, dtype=float)
         if envelope is None:
-            pp = prove_positive(sign * space.tensor_coef(bound), fam_name, strict=True,
-                                exclude=exclude, max_boxes=max_boxes)
+            pp = prove_positive(sign * space.tensor_coef(float(ceiling) * qk - pk), fam_name,
+                                strict=True, exclude=exclude, max_boxes=max_boxes)
         else:
-            # the same padded graded vectors, one tensor each: C varies from piece to piece
-            qk, pk = np.zeros(k), np.zeros(k)
-            qk[:len(fam.q)] = np.asarray(fam.q, dtype=float)
-            pk[:len(fam.p)] = np.asarray(fam.p, dtype=float)
+            # one tensor each: C varies from piece to piece
             of_piece = envelope.of_pieces(space)
             top = float(ceiling)
 
@@ -648,10 +654,10 @@ def reprove_saved(saved: object) -> bool | None:
            for e, env in zip(stated, envelopes, strict=True)):
         return False  # an envelope the file states but no ceiling can be read from
     # an envelope's column is theta_h's among the coordinates the fit keeps
-    kept = list(range(p.dim)) if keep is None else [int(k) for k in keep]
-    th = p.coords.index("theta_h") if "theta_h" in p.coords else None
-    if any(env is not None and (th not in kept or env.column != kept.index(th))
-           for env in envelopes):
+    from ratfit.brdf.fitter import theta_h_column
+
+    col = theta_h_column(p.name, None if keep is None else [int(k) for k in keep])
+    if any(env is not None and env.column != col for env in envelopes):
         return False
     return all(prove_validity(ch.rational, p.name, keep=keep, values=values,
                               ceiling=proof_ceiling(stated[j]), envelope=envelopes[j]).proved
