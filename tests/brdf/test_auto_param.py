@@ -190,6 +190,33 @@ def test_a_default_fit_that_fails_names_the_options_that_may_help(tmp_path: Path
     assert "Traceback" not in r.output
 
 
+def test_a_default_fit_widened_to_its_limit_does_not_ask_for_wider_segments(
+        tmp_path: Path) -> None:
+    """Every default width up to MAX_DEFAULT_DT without a candidate (a 15 x 15
+    checkerboard of 1 and 100, which no rational of 100 coefficients follows at +-90 %):
+    the hint says so, and does not suggest a wider --dt, which the ladder already tried."""
+    from ratfit.brdf.fitter import MAX_DEFAULT_DT
+
+    g = np.radians(np.linspace(1.0, 80.0, 15))
+    th, td = np.meshgrid(g, g, indexing="ij")
+    i, j = np.meshgrid(np.arange(15), np.arange(15), indexing="ij")
+    y = np.where((i + j) % 2 == 0, 1.0, 100.0).ravel()
+    rows = "\n".join(f"{a:.17g} {b:.17g} {v:.17g}"
+                      for a, b, v in zip(th.ravel(), td.ravel(), y, strict=True))
+    data = tmp_path / "checker.dat"
+    data.write_text(f"#DIM 2 1\n#PARAM_IN RUSIN_TH_TD\n#PARAM_OUT INV_STERADIAN\n{rows}\n")
+    out = tmp_path / "f.json"
+    r = run_cli("brdf", "fit", data, "-o", out, "--json")
+    assert r.exit_code == 1 and not out.exists()
+    tried = json.loads(r.stdout)["parametrization_candidates"]
+    assert max(c["dt"] for c in tried) == MAX_DEFAULT_DT
+    assert all(c["no_candidate"] for c in tried)
+    said = " ".join(r.stderr.split())
+    assert (f"hint: no candidate at any width tried, up to y +- {MAX_DEFAULT_DT:g} y, in "
+            "RUSIN_TH_TD") in said
+    assert "--dt" not in said.split("hint:")[1] and "Traceback" not in r.output
+
+
 def test_channels_that_verified_are_kept_and_the_others_named(tmp_path: Path) -> None:
     """One smooth channel and one of noise under a size bound: the smooth one verifies,
     the report keeps it and names the other with the option that refits it alone."""

@@ -278,7 +278,11 @@ class BRDFFitReport:
                       "or a longer --time-limit (the search ran out of time) "
                       if limited else "")
             dt, wider = float(widths["dt"]), f"{min(2 * float(widths['dt']), 1.0):.2g}"
-            if noise:
+            exhausted = _ladder_exhausted(self.meta.get("candidates", []))
+            if exhausted:
+                # widening went as far as it goes: "wider ones may give one" would be false
+                parts.append(exhausted)
+            elif noise:
                 # a width given makes "auto" values linear: a log fit's hint keeps them log
                 log = "--values log " if self.meta.get("values") == "log" else ""
                 said = (f"no verified fit at the segments of each channel's noise level "
@@ -287,7 +291,8 @@ class BRDFFitReport:
             else:
                 said = (f"no verified fit at the default segments (y +- {dt:.3g} y); "
                         f"wider ones (--dt {wider}) ")
-            parts.append(said + out_of + "may give one")
+            if not exhausted:
+                parts.append(said + out_of + "may give one")
         return "hint: " + "; ".join(parts) if parts else None
 
 
@@ -370,6 +375,27 @@ def _metrics(report: BRDFFitReport) -> dict[str, dict[str, float]]:
         except Exception:  # parametrizations without theta_l: no cos-weighted metric
             cl = None
     return brdf_metrics(pred, seg.center, cl, seg.names)
+
+
+def _ladder_exhausted(candidates: list[dict[str, Any]]) -> str | None:
+    """The hint when the default widths were widened to their limit in every frame tried
+    and no try had a candidate (None otherwise): wider segments cannot help then."""
+    from ratfit.brdf.fitter import MAX_DEFAULT_DT
+
+    tried = [c for c in candidates if not c.get("skipped") and not c.get("narrowed_floor_from")]
+    if not tried or any(c["verified"] or not c.get("no_candidate") for c in tried):
+        return None
+    frames = list(dict.fromkeys(str(c["parametrization"]) for c in tried))
+    widest = {f: max(float(c["dt"]) for c in tried if c["parametrization"] == f)
+              for f in frames}
+    if min(widest.values()) < MAX_DEFAULT_DT:
+        return None
+    return (f"no candidate at any width tried, up to y +- {MAX_DEFAULT_DT:g} y, in "
+            + " or ".join(frames) + " (every split the search tested was infeasible), so "
+            "wider segments will not give one: samples that the fit's coordinates cannot "
+            "tell apart disagree by more than that (a table that varies with phi_d next to the "
+            "mirror direction, where an isotropic fit cannot), or the data need more "
+            "coefficients than the search's limit (--max-total)")
 
 
 def _candidate_note(c: dict[str, Any]) -> str:
