@@ -392,10 +392,10 @@ def _ladder_exhausted(candidates: list[dict[str, Any]]) -> str | None:
         return None
     return (f"no candidate at any width tried, up to y +- {MAX_DEFAULT_DT:g} y, in "
             + " or ".join(frames) + " (every split the search tested was infeasible), so "
-            "wider segments will not give one: samples that the fit's coordinates cannot "
-            "tell apart disagree by more than that (a table that varies with phi_d next to the "
-            "mirror direction, where an isotropic fit cannot), or the data need more "
-            "coefficients than the search's limit (--max-total)")
+            "wider segments will not give one: nearby samples disagree faster than a rational "
+            "within the search's size limit can follow (a table that varies with phi_d next "
+            "to the mirror direction, where the half-vector frame's points nearly coincide, "
+            "or one that is rough near the horizon); a larger --max-total may")
 
 
 def _candidate_note(c: dict[str, Any]) -> str:
