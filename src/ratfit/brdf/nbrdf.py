@@ -66,7 +66,10 @@ class NeuralBRDF:
         one a MERL table of it samples, and reciprocal (L <-> V moves phi_d by pi);
         phi_h = 0 makes it isotropic. The network's slightly negative outputs (a few
         percent of pairs, down to about -0.7 1/sr) are clipped to 0: a BRDF is not
-        negative, and a MERL table would store them as missing cells.
+        negative. (A measured MERL file stores such cells as missing; a table written of
+        this function with :func:`~ratfit.brdf.io.merl_from_function` holds the 0, which
+        a fit must then meet: spectralon's has 5 537 such cells, in patches near the
+        horizon.)
         """
         la = np.asarray(L, dtype=float).reshape(-1, 3)
         va = np.asarray(V, dtype=float).reshape(-1, 3)
