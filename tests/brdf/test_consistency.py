@@ -136,3 +136,48 @@ def test_a_channel_with_no_candidate_is_widened_alone() -> None:
     zeros = b == 0.0
     assert zeros.any() and np.allclose(seg.hi[zeros, 1], 1e-3)
 
+
+
+def test_a_ladder_finds_its_samples_neighbours_once(monkeypatch) -> None:
+    """A table's default fit refitted at a wider width (fit_brdf_auto's ladder refits
+    the same dataset) reuses the first fit's nearest-neighbour search, and gets the same
+    segments as a search of its own; a dataset with other samples but the same meta
+    dict (a subset built with dataclasses.replace) searches its own."""
+    from dataclasses import replace
+
+    import ratfit.brdf.consistency as consistency
+    from ratfit.io.data import Dataset
+
+    calls: list[int] = []
+    search = consistency.sample_neighbours
+
+    def counted(x, *a, **k):
+        calls.append(len(x))
+        return search(x, *a, **k)
+
+    monkeypatch.setattr(consistency, "sample_neighbours", counted)
+    g = np.linspace(0.0, 1.0, 8)
+    x = np.stack([c.ravel() for c in np.meshgrid(g, g, g)], axis=1)
+    y = (1.0 + x[:, 0] + x[:, 1] * x[:, 2])[:, None]
+    # twenty cells measured twice, one of them 30 % apart (disjoint at +-5 %: merged)
+    x, y = np.concatenate([x, x[:20]]), np.concatenate([y, y[:20]])
+    y[-1] *= 1.3
+    ds = Dataset(x, y, None, None, ("u", "v", "w"), ("a",), {"param_in": "UNKNOWN",
+                                                               "format": "merl"})
+    _, seg1, meta1 = fit_brdf(ds, max_total=6, polish=False)
+    _, seg2, meta2 = fit_brdf(ds, dt=0.08, abs_width=1e-3, consistent=True, max_total=6,
+                              polish=False)
+    assert calls == [len(x)]
+    fresh = Dataset(x.copy(), y, None, None, ds.input_names, ("a",),
+                    {"param_in": "UNKNOWN", "format": "merl"})
+    _, seg3, meta3 = fit_brdf(fresh, dt=0.08, abs_width=1e-3, consistent=True,
+                              max_total=6, polish=False)
+    assert calls == [len(x)] * 2
+    assert np.array_equal(seg2.lo, seg3.lo) and np.array_equal(seg2.hi, seg3.hi)
+    assert meta1["segments"]["merged"] > 0 and meta2["segments"]["merged"] == \
+        meta3["segments"]["merged"]
+    half = replace(ds, x=x[::2], y=y[::2])  # other samples, the same meta dict
+    assert half.meta is ds.meta
+    _, seg4, _ = fit_brdf(half, dt=0.08, abs_width=1e-3, consistent=True, max_total=6,
+                          polish=False)
+    assert calls == [len(x)] * 2 + [len(x[::2])] and seg4.lo.shape[0] == len(x[::2])
