@@ -212,9 +212,26 @@ def test_a_default_fit_widened_to_its_limit_does_not_ask_for_wider_segments(
     assert max(c["dt"] for c in tried) == MAX_DEFAULT_DT
     assert all(c["no_candidate"] for c in tried)
     said = " ".join(r.stderr.split())
-    assert (f"hint: no candidate at any width tried, up to y +- {MAX_DEFAULT_DT:g} y, in "
-            "RUSIN_TH_TD") in said
+    assert (f"hint: no verified fit at any width ratfit tries, up to y +- "
+            f"{MAX_DEFAULT_DT:g} y, in RUSIN_TH_TD,") in said
     assert "--dt" not in said.split("hint:")[1] and "Traceback" not in r.output
+    # two such channels (and one smooth one) are widened channel by channel instead
+    smooth = 1.0 + 0.2 * np.cos(th.ravel())
+    rows = "\n".join(f"{a:.17g} {b:.17g} {u:.17g} {v:.17g} {w:.17g}" for a, b, u, v, w in
+                      zip(th.ravel(), td.ravel(), y, 2 * y, smooth, strict=True))
+    data.write_text(f"#DIM 2 3\n#PARAM_IN RUSIN_TH_TD\n#PARAM_OUT INV_STERADIAN\n{rows}\n")
+    r = run_cli("brdf", "fit", data, "-o", out, "--json")
+    assert r.exit_code == 1 and not out.exists()
+    doc = json.loads(r.stdout)
+    assert [c["success"] for c in doc["channels"]] == [False, False, True]
+    assert doc["parametrization_candidates"][0]["unverified_dt"] == [MAX_DEFAULT_DT] * 2
+    said = " ".join(r.stderr.split())
+    assert "hint: channels y2 verified" in said
+    assert f"no verified fit at any width ratfit tries, up to y +- {MAX_DEFAULT_DT:g} y" \
+        in said and "--dt" not in said.split("hint:")[1]
+    # a ladder that stopped short of the limit still suggests a wider --dt
+    r = run_cli("brdf", "fit", data, "-o", out, "--max-total", "6", "--time-limit", "0")
+    assert r.exit_code == 1 and "wider ones (--dt" in " ".join(r.stderr.split())
 
 
 def test_channels_that_verified_are_kept_and_the_others_named(tmp_path: Path) -> None:

@@ -861,11 +861,16 @@ def _widths_defaulted(kw: dict[str, Any]) -> bool:
 def _tried(fitter: RationalFitter, meta: dict[str, Any], band: tuple[float, float],
            searched_up_to: int | None, **extra: Any) -> dict[str, Any]:
     """One entry of ``meta["candidates"]``: a fit tried at segments ``band``
-    (dt, floor); ``coefficients`` over all channels when verified."""
+    (dt, floor); ``coefficients`` over all channels when verified; ``unverified_dt``: the
+    width of each channel without a verified fit (a channel widened alone at its own)."""
     ok = bool(fitter.success_)
+    widths = meta["segments"].get("channel_dt") or [band[0]] * len(fitter.results_)
     return {"parametrization": meta["parametrization"], "verified": ok,
             "coefficients": fit_coefficients(fitter) if ok else None,
-            "dt": band[0], "floor": band[1], "searched_up_to": searched_up_to, **extra}
+            "dt": band[0], "floor": band[1], "searched_up_to": searched_up_to,
+            "unverified_dt": [float(w) for w, r in zip(widths, fitter.results_, strict=True)
+                              if not r.success],
+            **extra}
 
 
 def _no_candidate(fitter: RationalFitter) -> bool:

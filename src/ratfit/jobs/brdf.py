@@ -378,24 +378,26 @@ def _metrics(report: BRDFFitReport) -> dict[str, dict[str, float]]:
 
 
 def _ladder_exhausted(candidates: list[dict[str, Any]]) -> str | None:
-    """The hint when the default widths were widened to their limit in every frame tried
-    and no try had a candidate (None otherwise): wider segments cannot help then."""
+    """The hint when every frame tried was widened as far as the default widths go
+    (:data:`~ratfit.brdf.fitter.MAX_DEFAULT_DT`) without a verified fit, by the ladder of
+    the whole fit or channel by channel (None otherwise): wider segments cannot help."""
     from ratfit.brdf.fitter import MAX_DEFAULT_DT
 
     tried = [c for c in candidates if not c.get("skipped") and not c.get("narrowed_floor_from")]
-    if not tried or any(c["verified"] or not c.get("no_candidate") for c in tried):
+    if not tried or any(c["verified"] or not c.get("unverified_dt") for c in tried):
         return None
     frames = list(dict.fromkeys(str(c["parametrization"]) for c in tried))
-    widest = {f: max(float(c["dt"]) for c in tried if c["parametrization"] == f)
+    # each frame's widest try: the narrowest width among its unverified channels
+    widest = {f: max(min(c["unverified_dt"]) for c in tried if c["parametrization"] == f)
               for f in frames}
     if min(widest.values()) < MAX_DEFAULT_DT:
         return None
-    return (f"no candidate at any width tried, up to y +- {MAX_DEFAULT_DT:g} y, in "
-            + " or ".join(frames) + " (every split the search tested was infeasible), so "
-            "wider segments will not give one: nearby samples disagree faster than a rational "
-            "within the search's size limit can follow (a table that varies with phi_d next "
-            "to the mirror direction, where the half-vector frame's points nearly coincide, "
-            "or one that is rough near the horizon); a larger --max-total may")
+    return (f"no verified fit at any width ratfit tries, up to y +- {MAX_DEFAULT_DT:g} y, in "
+            + " or ".join(frames) + ", so wider segments will not give one: the samples "
+            "change faster than a rational within the search's size limit can follow "
+            "(measured on RGL's tables: they vary with phi_d next to the mirror direction, "
+            "where the half-vector frame's points nearly coincide, and hold patches of zeros "
+            "near the horizon); a larger --max-total may")
 
 
 def _candidate_note(c: dict[str, Any]) -> str:
