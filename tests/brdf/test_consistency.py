@@ -137,7 +137,6 @@ def test_a_channel_with_no_candidate_is_widened_alone() -> None:
     assert zeros.any() and np.allclose(seg.hi[zeros, 1], 1e-3)
 
 
-
 def test_a_ladder_finds_its_samples_neighbours_once(monkeypatch) -> None:
     """A table's default fit refitted at a wider width (fit_brdf_auto's ladder refits
     the same dataset) reuses the first fit's nearest-neighbour search, and gets the same
