@@ -77,6 +77,14 @@ print(json.dumps({"rc": rc, "seconds": dt, "peak_mb": use.ru_maxrss / 1024.0,
 """
 
 
+def _clip(text: str, most: int = 200) -> str:
+    """``text`` cut at a word boundary to at most ``most`` characters, " ..." marking a
+    cut (a table cell, not a word cut in half)."""
+    if len(text) <= most:
+        return text
+    return text[:most].rsplit(" ", 1)[0] + " ..."
+
+
 def hemisphere(rng: np.random.Generator, n: int, zmin: float) -> np.ndarray:
     """Directions uniform (by solid angle) on the cap z in (zmin, 1]."""
     z = rng.uniform(zmin, 1.0, n)
@@ -294,7 +302,7 @@ def main() -> None:
                       f"{r['load']:.1f}"]
             if "errors" not in r:
                 nm = "/".join(map(str, r["coefs"])) if r.get("coefs") else "-"
-                why = f" [{r['why'][0][:120]}]" if r.get("why") else ""
+                why = f" [{_clip(r['why'][0])}]" if r.get("why") else ""
                 rows.append([r["name"], *code, "RGB", nm, "-", "-", "-", "-", *common,
                              status + why])
                 continue
