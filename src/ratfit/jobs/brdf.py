@@ -271,18 +271,19 @@ class BRDFFitReport:
                          f"(refit {'it' if len(failed) == 1 else 'them'} alone with "
                          + " ".join(f"--channel {n}" for n in failed) + ")")
         noise = bool(widths.get("noise_estimated")) and widths["dt"] is not None
-        if widths["default"] or noise:
+        exhausted = (_ladder_exhausted(self.meta.get("candidates", []))
+                     if widths["default"] or noise else None)
+        if exhausted:
+            # widening went as far as it goes: "wider ones may give one" would be false
+            parts.append(exhausted)
+        elif widths["default"] or noise:
             limited = [r.message for r in self.results if r.time_limited]
             out_of = ("or a larger --work-limit (the search ran out of QP solves) "
                       if any("work limit of" in m for m in limited) else
                       "or a longer --time-limit (the search ran out of time) "
                       if limited else "")
             dt, wider = float(widths["dt"]), f"{min(2 * float(widths['dt']), 1.0):.2g}"
-            exhausted = _ladder_exhausted(self.meta.get("candidates", []))
-            if exhausted:
-                # widening went as far as it goes: "wider ones may give one" would be false
-                parts.append(exhausted)
-            elif noise:
+            if noise:
                 # a width given makes "auto" values linear: a log fit's hint keeps them log
                 log = "--values log " if self.meta.get("values") == "log" else ""
                 said = (f"no verified fit at the segments of each channel's noise level "
@@ -291,8 +292,7 @@ class BRDFFitReport:
             else:
                 said = (f"no verified fit at the default segments (y +- {dt:.3g} y); "
                         f"wider ones (--dt {wider}) ")
-            if not exhausted:
-                parts.append(said + out_of + "may give one")
+            parts.append(said + out_of + "may give one")
         return "hint: " + "; ".join(parts) if parts else None
 
 
