@@ -198,6 +198,18 @@ ENVELOPE_SLACK = 0.05
 #: envelope's value at their far end in theta_h, so the rows' envelope, met at points up
 #: to a slack apart, is proved wherever a piece spans at most one slack.
 ENVELOPE_PROOF_SLACK = 2 * ENVELOPE_SLACK
+#: The search finds the fewest coefficients that meet every segment; there the feasible
+#: set is thin and the polish cannot move (acryl_blue's B at +-65 %: no inner band even at
+#: 0.1 % of each width, diffuse fit / data 0.62). With :attr:`BRDFFitter.held_out_size`
+#: the smallest fit is also polished at these multiples of its n and m (padded with
+#: zeros: the same function, so a feasible start), each size scored by
+#: :data:`GROWTH_FOLDS`-fold cross-validation of that polish, and the size with the
+#: lowest held-out error is kept when it beats the smallest by :data:`GROWTH_MIN_GAIN`
+#: and is proved valid like any fit.
+GROWTH_FACTORS = (1.25, 1.5, 2.0)
+GROWTH_FOLDS = 5
+GROWTH_MIN_GAIN = 0.02
+GROWTH_PROOF_ROUNDS = 3
 
 
 def cos_theta_l(coords: ArrayLike, param: str) -> Array:
@@ -507,6 +519,9 @@ def fit_brdf(ds: Dataset, *, dt: float | None = None, abs_width: AbsWidth = None
         # widths at the noise level, sized by ratfit: a channel that needs more than this
         # is widened alone (below) rather than searched for an hour
         fitter_params["max_total"] = NOISE_LOG_MAX_TOTAL
+        if fitter_params.get("held_out_size") is None and not is_table(ds):
+            # the size the samples held out prefer, not the smallest that meets them
+            fitter_params["held_out_size"] = True
     if fitter_params.get("polish_error", "auto") == "auto":
         # relative errors mean something where small values have a noise-level floor
         fitter_params = {**fitter_params,
@@ -582,6 +597,10 @@ def fit_brdf(ds: Dataset, *, dt: float | None = None, abs_width: AbsWidth = None
                       "proof_slack": ENVELOPE_PROOF_SLACK,
                       "factor": LOG_CEILING_FACTOR, "proved": True}),
     }
+    sizes = fitter.__dict__.get("_sizes")
+    if sizes:
+        # per channel: the searched size, the sizes scored on held-out folds, the kept one
+        meta["held_out_size"] = [sizes.get(j) for j in range(seg.n_channels)]
     if shared_denominator:
         meta["shared"] = _shared_block(fitter)
     return fitter, seg, meta
@@ -926,6 +945,10 @@ def _widen_channels(fitter: BRDFFitter, seg: Segments, dt: float | Sequence[floa
             fitter.results_[j] = res
             fitter.validity_[j] = alone.validity_[0]
             fitter.proofs_[j] = alone.proofs_[0]
+            sized = alone.__dict__.get("_sizes", {})
+            fitter.__dict__.setdefault("_sizes", {}).pop(j, None)
+            if 0 in sized:
+                fitter.__dict__["_sizes"][j] = sized[0]
             lo[:, j], hi[:, j] = one.lo[:, 0], one.hi[:, 0]
     if len(set(widths)) == 1 and widths == starts:
         return seg, None
@@ -1155,6 +1178,16 @@ class BRDFFitter(RationalFitter):
         search's and the polish's points (:data:`ENVELOPE_SLACK`) and by the validity
         proof on the whole region (:data:`ENVELOPE_PROOF_SLACK`). None is off here;
         :func:`fit_brdf` turns it on for scattered measurements.
+    held_out_size : bool or None, default None
+        A fit of log values: after the search's smallest verified fit (and its polish),
+        polish it at :data:`GROWTH_FACTORS` times its n and m as well, score each size by
+        the held-out error of that polish over :data:`GROWTH_FOLDS` folds of the
+        samples (the RMS of log((f + e) / (y + e)), e = 1e-3 1/sr), and keep the size
+        with the lowest when it is lower than the smallest's by :data:`GROWTH_MIN_GAIN`
+        and the fit of that size is proved valid (else the smallest is kept). The
+        minimal-size fit meets its segments along their edges; a larger one can follow
+        the data within them. None is off here; :func:`fit_brdf` turns it on for
+        scattered measurements at ratfit's widths and sizes.
     used_coords : tuple of int, optional
         The coordinates of the parametrization that the segments' x holds, in
         order (None: all); :func:`fit_brdf` drops constant ones (Cornell's
@@ -1200,10 +1233,11 @@ class BRDFFitter(RationalFitter):
                  used_coords: tuple[int, ...] | None = None,
                  solver: str = BRDF_SOLVER, time_limit: float | None = DEFAULT_TIME_LIMIT,
                  values: str = "auto", envelope: bool | None = None,
-                 **params: Any) -> None:
+                 held_out_size: bool | None = None, **params: Any) -> None:
         super().__init__(solver=solver, time_limit=time_limit, **params)
         self.values = values
         self.envelope = envelope
+        self.held_out_size = held_out_size
         self.parametrization = parametrization
         self.positive_q = positive_q
         self.physical = physical
@@ -1263,9 +1297,85 @@ class BRDFFitter(RationalFitter):
             if (not self._full_search and not res.success and searched.rational is not None
                     and searched.success):
                 res = self._search_with_full_proof(res, seg, j)
+        if (self.held_out_size and prove and self.value_form == "log"
+                and not self._full_search and res.success):
+            res = self._held_out_sized(res, seg, j)
         if self.value_form == "log" and not self._full_search and res.success:
             res = self._values_checked(res, j)
         return res
+
+    def _held_out_sized(self, res: FitResult, seg: Segments, j: int) -> FitResult:
+        """Channel ``j``'s proved fit ``res``, or the same fit polished at a larger size
+        (:data:`GROWTH_FACTORS`) when that size has the lower held-out error over
+        :data:`GROWTH_FOLDS` folds and is proved valid too (see :attr:`held_out_size`).
+        Each fold's polish starts from ``res`` (fitted to every sample, so the smallest
+        size's own score is partly in-sample: the comparison leans towards keeping it).
+        Counted in QP solves (a :data:`POLISH_WORK_SHARE` of ``work_limit``), so the
+        choice does not depend on the machine's load."""
+        from ratfit.core.polish import polish_fit
+
+        rf = res.rational
+        y = self._value_segments.y
+        if rf is None or y is None or seg.n_points < 10 * GROWTH_FOLDS:
+            return res
+        rf = rf.to_family()
+        y = np.clip(np.asarray(y[:, j], dtype=float), 0.0, None)
+        weights = y / (y + NOISE_FLOOR)  # d log(f + e) / d log f at f = y
+        fold = np.random.default_rng(0).permutation(seg.n_points) % GROWTH_FOLDS
+        pts = self._configurations(rf.space.domain)
+        if self._points_of(j):
+            pts = np.concatenate([pts, *self._points_of(j)])
+        ceiling = self._row_ceiling(j, pts)
+        limit = self.work_limit
+        work = WorkBudget(None if limit is None else max(1, int(limit * POLISH_WORK_SHARE)))
+        sizes = [(rf.n, rf.m)] + [(int(np.ceil(g * rf.n)), int(np.ceil(g * rf.m)))
+                                  for g in GROWTH_FACTORS]
+        scores: list[float] = []
+        for n, m in sizes:
+            start = _padded(rf, n, m)
+            sq = 0.0
+            for k in range(GROWTH_FOLDS):
+                train = fold != k
+                part = Segments(seg.x[train], seg.lo[train, j:j + 1], seg.hi[train, j:j + 1],
+                                seg.center[train, j:j + 1], (seg.names[j],))
+                cand = None if work.exhausted else polish_fit(
+                    start, part, 0, weights=weights[train], positive_at=pts,
+                    solver=self.solver, numerator=False, ceiling=ceiling, method="qp",
+                    work=work)
+                fit = start if cand is None else cand
+                with np.errstate(all="ignore"):
+                    f = np.exp(np.minimum(fit(seg.x[~train]), 700.0))
+                    err = np.log((f + NOISE_FLOOR) / (y[~train] + NOISE_FLOOR))
+                sq += float(np.sum(np.where(np.isfinite(err), err, 700.0) ** 2))
+            scores.append(float(np.sqrt(sq / seg.n_points)))
+        record: dict[str, Any] = {
+            "searched": [rf.n, rf.m], "sizes": [list(v) for v in sizes],
+            "held_out_rel_rmse": scores, "folds": GROWTH_FOLDS, "chosen": [rf.n, rf.m],
+            "qp_solves": work.spent}
+        self.__dict__.setdefault("_sizes", {})[j] = record
+        told = ", ".join(f"{n + m}: {e:.4g}" for (n, m), e in zip(sizes, scores, strict=True))
+        # the sizes that beat the smallest, best first; the next is tried when one's
+        # polish does not verify or is not proved
+        better = [i for i in np.argsort(scores, kind="stable")
+                  if i > 0 and scores[i] < (1.0 - GROWTH_MIN_GAIN) * scores[0]]
+        why = []
+        for i in better[:2]:
+            n, m = sizes[i]
+            grown = self._grown_and_proved(res, _padded(rf, n, m), seg, j, weights,
+                                           WorkBudget(work.limit))
+            if isinstance(grown, str):
+                why.append(f"{n + m}: {grown}")
+                continue
+            record["chosen"] = [n, m]
+            return replace(grown, message=f"{res.message}; polished at {n + m} "
+                                          f"coefficients, the size with the lowest held-out "
+                                          f"relative RMSE that is proved ({told}; "
+                                          f"{GROWTH_FOLDS} folds)")
+        tail = f"; {'; '.join(why)}" if why else ""
+        return replace(res, message=f"{res.message}; the smallest size kept (held-out "
+                                    f"relative RMSE by total: {told}{tail})")
+
+
 
     @contextlib.contextmanager
     def _full_proof(self, j: int, on: bool = True) -> Iterator[None]:
@@ -1458,9 +1568,28 @@ class BRDFFitter(RationalFitter):
                 box_points=BOX_POINTS))
         return cache[1]
 
+    def _grown_and_proved(self, res: FitResult, start: RationalFunction, seg: Segments,
+                          j: int, weights: Array, work: WorkBudget) -> FitResult | str:
+        """The weighted polish of ``start`` (a larger size of ``res``'s fit) proved valid,
+        or why not. Where the proof finds q <= 0 or a value over the ceiling between the
+        validity points, those points join the polish's rows and it runs again (up to
+        :data:`GROWTH_PROOF_ROUNDS` times): the least-squares fit leans on its rows."""
+        why = "its polish did not verify"
+        for _ in range(GROWTH_PROOF_ROUNDS):
+            out = self._polish_rounds(start, seg, j, None, weights=weights, work=work)
+            if out is None:
+                return why
+            grown = self._proved(replace(res, n=start.n, m=start.m, rational=out[0],
+                                         verification=out[1]), seg, j)
+            if grown.success:
+                return grown
+            why = "not proved valid"  # (_proved added the points where it failed)
+        return why
+
     def _polish_rounds(self, rf: RationalFunction, seg: Segments, j: int,
                        deadline: float | None, rounds: int = 4, method: str = "auto",
-                       repair: bool = False, work: WorkBudget | None = None
+                       repair: bool = False, work: WorkBudget | None = None,
+                       weights: Array | None = None
                        ) -> tuple[RationalFunction, Verification] | None:
         """The least-squares polish of ``rf`` that passes :meth:`_verify`, or None
         (also once ``work``, the QP solves it may spend, is exhausted, or once
@@ -1469,7 +1598,8 @@ class BRDFFitter(RationalFitter):
         Where the dense validity check still finds q <= 0 or r < 0, those points
         join the polish's constraints and it runs again (constraint generation).
         ``repair``: :func:`~ratfit.core.polish.polish_fit`'s repair mode (a valid fit is
-        the point; the chosen fit is polished in full after the search).
+        the point; the chosen fit is polished in full after the search). ``weights``:
+        each sample's weight (default :meth:`_polish_weights`).
         """
         from ratfit.core.polish import polish_fit
 
@@ -1479,7 +1609,8 @@ class BRDFFitter(RationalFitter):
         for _ in range(rounds):
             if _past(deadline) or (work is not None and work.exhausted):
                 return None
-            cand = polish_fit(rf, seg, j, weights=self._polish_weights(seg, j),
+            cand = polish_fit(rf, seg, j, weights=(self._polish_weights(seg, j)
+                                                   if weights is None else weights),
                               positive_at=pts, solver=self.solver,
                               numerator=self.value_form == "linear",
                               ceiling=self._row_ceiling(j, pts), deadline=deadline,
@@ -1670,6 +1801,13 @@ class BRDFFitter(RationalFitter):
               and not ver.denominator_sign_changes)
         return replace(ver, verified=ok,
                        denominator_sign_changes=ver.denominator_sign_changes or chk.min_q <= 0)
+
+
+def _padded(rf: RationalFunction, n: int, m: int) -> RationalFunction:
+    """``rf`` (in its space's own family) written with ``n`` and ``m`` coefficients: the
+    basis functions added have coefficient 0, so it is the same function."""
+    return RationalFunction(rf.space, np.r_[rf.p, np.zeros(n - rf.n)],
+                            np.r_[rf.q, np.zeros(m - rf.m)])
 
 
 def _spread(points: Array, k: int) -> Array:

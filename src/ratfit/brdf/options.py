@@ -99,6 +99,12 @@ BRDF_OPTIONS = extend_spec(
            "not only under the channel's ceiling, and the validity proof proves it; "
            "None: for scattered measurements "
            "(ratfit.brdf.fitter.fit_brdf decides).", cli=False),
+    Option("held_out_size", "bool", None,
+           "Fits of log values: after the search's smallest verified fit, polish it at "
+           "larger sizes too (ratfit.brdf.fitter.GROWTH_FACTORS times n and m) and keep the "
+           "size with the lowest 5-fold held-out relative error, when proved; None: for "
+           "scattered measurements at ratfit's widths and sizes "
+           "(ratfit.brdf.fitter.fit_brdf decides).", cli=False),
     Option("used_coords", "indices", None,
            "Coordinates of the parametrization the data holds (None: all).",
            validator=_check_coords, cli=False),
@@ -121,6 +127,7 @@ class BRDFOptions(FitOptions):
     polish_error: str = "auto"
     values: str = "auto"
     envelope: bool | None = None
+    held_out_size: bool | None = None
     used_coords: tuple[int, ...] | None = None
 
 
