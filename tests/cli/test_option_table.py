@@ -175,6 +175,7 @@ BRDF_ROWS = [
     ("polish_error", ["--polish-error", "absolute"], "absolute"),
     ("values", ["--values", "log"], "log"),
     ("envelope", ["--no-envelope"], False),
+    ("held_out_size", ["--smallest-size"], False),
 ]
 
 

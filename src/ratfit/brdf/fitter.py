@@ -210,6 +210,7 @@ GROWTH_FACTORS = (1.25, 1.5, 2.0)
 GROWTH_FOLDS = 5
 GROWTH_MIN_GAIN = 0.02
 GROWTH_PROOF_ROUNDS = 3
+GROWTH_STEPS = 3
 
 
 def cos_theta_l(coords: ArrayLike, param: str) -> Array:
@@ -1320,7 +1321,6 @@ class BRDFFitter(RationalFitter):
             return res
         rf = rf.to_family()
         y = np.clip(np.asarray(y[:, j], dtype=float), 0.0, None)
-        weights = y / (y + NOISE_FLOOR)  # d log(f + e) / d log f at f = y
         fold = np.random.default_rng(0).permutation(seg.n_points) % GROWTH_FOLDS
         pts = self._configurations(rf.space.domain)
         if self._points_of(j):
@@ -1337,16 +1337,18 @@ class BRDFFitter(RationalFitter):
             for k in range(GROWTH_FOLDS):
                 train = fold != k
                 part = Segments(seg.x[train], seg.lo[train, j:j + 1], seg.hi[train, j:j + 1],
-                                seg.center[train, j:j + 1], (seg.names[j],))
-                cand = None if work.exhausted else polish_fit(
-                    start, part, 0, weights=weights[train], positive_at=pts,
-                    solver=self.solver, numerator=False, ceiling=ceiling, method="qp",
-                    work=work)
-                fit = start if cand is None else cand
-                with np.errstate(all="ignore"):
-                    f = np.exp(np.minimum(fit(seg.x[~train]), 700.0))
-                    err = np.log((f + NOISE_FLOOR) / (y[~train] + NOISE_FLOOR))
-                sq += float(np.sum(np.where(np.isfinite(err), err, 700.0) ** 2))
+                                None, (seg.names[j],))
+
+                def step(fit: RationalFunction, target: Segments, w: Array
+                         ) -> RationalFunction | None:
+                    if work.exhausted:
+                        return None
+                    return polish_fit(fit, target, 0, weights=w, positive_at=pts,
+                                      solver=self.solver, numerator=False, ceiling=ceiling,
+                                      method="qp", work=work)
+
+                fit = _relative_steps(start, part, 0, y[train], step)[0]
+                sq += _relative_sq(fit, seg.x[~train], y[~train])
             scores.append(float(np.sqrt(sq / seg.n_points)))
         record: dict[str, Any] = {
             "searched": [rf.n, rf.m], "sizes": [list(v) for v in sizes],
@@ -1361,7 +1363,7 @@ class BRDFFitter(RationalFitter):
         why = []
         for i in better[:2]:
             n, m = sizes[i]
-            grown = self._grown_and_proved(res, _padded(rf, n, m), seg, j, weights,
+            grown = self._grown_and_proved(res, _padded(rf, n, m), seg, j, y,
                                            WorkBudget(work.limit))
             if isinstance(grown, str):
                 why.append(f"{n + m}: {grown}")
@@ -1569,18 +1571,28 @@ class BRDFFitter(RationalFitter):
         return cache[1]
 
     def _grown_and_proved(self, res: FitResult, start: RationalFunction, seg: Segments,
-                          j: int, weights: Array, work: WorkBudget) -> FitResult | str:
-        """The weighted polish of ``start`` (a larger size of ``res``'s fit) proved valid,
-        or why not. Where the proof finds q <= 0 or a value over the ceiling between the
-        validity points, those points join the polish's rows and it runs again (up to
-        :data:`GROWTH_PROOF_ROUNDS` times): the least-squares fit leans on its rows."""
+                          j: int, y: Array, work: WorkBudget) -> FitResult | str:
+        """The relative-error polish of ``start`` (a larger size of ``res``'s fit, ``y``
+        the channel's values) proved valid, or why not. Where the proof finds q <= 0 or a
+        value over the ceiling between the validity points, those points join the
+        polish's rows and it runs again (up to :data:`GROWTH_PROOF_ROUNDS` times): the
+        least-squares fit leans on its rows."""
         why = "its polish did not verify"
-        for _ in range(GROWTH_PROOF_ROUNDS):
-            out = self._polish_rounds(start, seg, j, None, weights=weights, work=work)
+        checked: dict[int, Verification] = {}
+
+        def step(fit: RationalFunction, target: Segments, w: Array) -> RationalFunction | None:
+            out = self._polish_rounds(fit, target, j, None, weights=w, work=work)
             if out is None:
+                return None
+            checked[id(out[0])] = out[1]
+            return out[0]
+
+        for _ in range(GROWTH_PROOF_ROUNDS):
+            fit, moved = _relative_steps(start, seg, j, y, step)
+            if not moved:
                 return why
-            grown = self._proved(replace(res, n=start.n, m=start.m, rational=out[0],
-                                         verification=out[1]), seg, j)
+            grown = self._proved(replace(res, n=start.n, m=start.m, rational=fit,
+                                         verification=checked[id(fit)]), seg, j)
             if grown.success:
                 return grown
             why = "not proved valid"  # (_proved added the points where it failed)
@@ -1801,6 +1813,47 @@ class BRDFFitter(RationalFitter):
               and not ver.denominator_sign_changes)
         return replace(ver, verified=ok,
                        denominator_sign_changes=ver.denominator_sign_changes or chk.min_q <= 0)
+
+
+def _relative_sq(fit: RationalFunction, x: Array, y: Array) -> float:
+    """Sum of log((f + e) / (y + e))^2 over the points ``x`` of values ``y`` for a fit of
+    log values (f = exp(fit)), e = :data:`~ratfit.brdf.options.NOISE_FLOOR`."""
+    with np.errstate(all="ignore"):
+        f = np.exp(np.minimum(fit(x), 700.0))
+        err = np.log((f + NOISE_FLOOR) / (y + NOISE_FLOOR))
+    return float(np.sum(np.where(np.isfinite(err), err, 700.0) ** 2))
+
+
+def _relative_steps(start: RationalFunction, seg: Segments, j: int, y: Array,
+                    step: Any) -> tuple[RationalFunction, bool]:
+    """Gauss-Newton on the relative error of a fit of log values g (f = exp(g)):
+    log(f + e) - log(y + e) is linearised at the current fit f0 as r0 + w0 (g - g0),
+    w0 = f0 / (f0 + e), a weighted least-squares problem in g with weights w0 and target
+    g0 - r0 / w0, which ``step(fit, segments with that target in column j, w0)`` (a
+    polish inside ``seg``'s segments) solves. A value far below e (a black diffuse part)
+    then barely counts, as in the error itself, and a value the fit lifts towards e
+    counts again. Up to :data:`GROWTH_STEPS` steps, each kept only when the true error
+    falls; returns the fit and whether any step was kept."""
+    fit, moved = start, False
+    best = _relative_sq(fit, seg.x, y)
+    for _ in range(GROWTH_STEPS):
+        with np.errstate(all="ignore"):
+            g0 = fit(seg.x)
+            f0 = np.exp(np.minimum(g0, 700.0))
+            w = f0 / (f0 + NOISE_FLOOR)
+            target = g0 - np.log((f0 + NOISE_FLOOR) / (y + NOISE_FLOOR)) / w
+        if not (np.all(np.isfinite(target)) and np.all(w > 0)):
+            break
+        center = np.array(seg.center if seg.y is not None else 0.5 * (seg.lo + seg.hi))
+        center[:, j] = target
+        cand = step(fit, Segments(seg.x, seg.lo, seg.hi, center, seg.names), w)
+        if cand is None:
+            break
+        err = _relative_sq(cand, seg.x, y)
+        if not err < best:
+            break
+        fit, best, moved = cand, err, True
+    return fit, moved
 
 
 def _padded(rf: RationalFunction, n: int, m: int) -> RationalFunction:

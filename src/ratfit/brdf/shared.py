@@ -67,8 +67,9 @@ SHARED_MAX_N = 60
 SHARED_MAX_M = 60
 # Search options of the per-channel fit that the shared search has no use for: the
 # BRDF path's own (handled here) and the ones a shared search refuses unless default.
-# (envelope: of log values, which a shared denominator refuses)
-_BRDF_ONLY = ("positive_q", "physical", "polish", "polish_error", "values", "envelope")
+# (envelope, held_out_size: of log values, which a shared denominator refuses)
+_BRDF_ONLY = ("positive_q", "physical", "polish", "polish_error", "values", "envelope",
+              "held_out_size")
 
 
 def shared_valid_rows(system: SharedSystem, t_grid: Array) -> AppendedRows:

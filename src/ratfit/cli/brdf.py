@@ -141,6 +141,12 @@ def _split_channels(values: tuple[str, ...]) -> list[str]:
                    "twice the channel's largest. Default: on for scattered measurements, "
                    "whose unsampled pairs a fit may otherwise fill with highlights; off "
                    "for a full MERL table.")
+@click.option("--held-out-size/--smallest-size", "held_out_size", default=None,
+              help="Fits of log values: also polish the smallest verified fit at 1.25, 1.5 "
+                   "and 2 times its n and m, and keep the size with the lowest 5-fold "
+                   "held-out relative error when it is proved valid (brdf.held_out_size in "
+                   "the fit file). Default: on for scattered measurements with no width or "
+                   "size option; --smallest-size keeps the fewest coefficients.")
 @click.option("--shared-denominator", "shared", is_flag=True,
               help="One denominator q for every channel, one numerator p_c per channel: "
                    "minimises sum(n_c) + m (--m fixes q's size, --max-total bounds each "
@@ -153,7 +159,8 @@ def brdf_fit(input_path: Path, output: Path | None, fmt: str | None, param: str 
              clamp: float | None, positive_q: bool, channels: tuple[str, ...], color: str,
              max_points: int | None, holdout: int | None, no_polish: bool,
              polish_error: str, as_json: bool, shared: bool = False, values: str = "linear",
-             envelope: bool | None = None, **options: Any) -> None:
+             envelope: bool | None = None, held_out_size: bool | None = None,
+             **options: Any) -> None:
     """Fit each channel of a measured BRDF with a verified rational function."""
     from ratfit.jobs import BRDFFitRequest, fit_brdf_file
 
@@ -168,7 +175,8 @@ def brdf_fit(input_path: Path, output: Path | None, fmt: str | None, param: str 
         "floor_rel": floor_rel, "cosine": cosine, "clamp": clamp, "positive_q": positive_q,
         "channels": _split_channels(channels), "color": color, "max_points": max_points,
         "holdout": holdout, "polish": not no_polish, "polish_error": polish_error,
-        "values": values, "envelope": envelope, "shared_denominator": shared,
+        "values": values, "envelope": envelope, "held_out_size": held_out_size,
+        "shared_denominator": shared,
         "output": output})
     cb, stop = _progress(True)  # stderr: JSON on stdout stays clean
     try:

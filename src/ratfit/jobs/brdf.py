@@ -254,6 +254,9 @@ class BRDFFitReport:
             out.append(_widths_note(self.meta["segments"]))
         elif self.meta["segments"].get("noise_estimated"):
             out.append(_noise_note(self.meta["segments"], self.meta["channel_names"]))
+        if self.meta.get("held_out_size"):
+            out.append(_held_out_size_note(self.meta["held_out_size"],
+                                           self.meta["channel_names"]))
         return out
 
     def hint(self) -> str | None:
@@ -294,6 +297,31 @@ class BRDFFitReport:
                         f"wider ones (--dt {wider}) ")
             parts.append(said + out_of + "may give one")
         return "hint: " + "; ".join(parts) if parts else None
+
+
+def _held_out_size_note(sizes: list[dict[str, Any] | None], names: list[str]) -> str:
+    """Which channels a held-out score made larger than their searched size."""
+    grown, kept = [], []
+    for name, rec in zip(names, sizes, strict=True):
+        if rec is None:
+            continue
+        searched, chosen = sum(rec["searched"]), sum(rec["chosen"])
+        if chosen != searched:
+            grown.append(f"{name} {searched} -> {chosen}")
+        else:
+            kept.append(f"{name} {searched}")
+    said = (f"size: {', '.join(grown)} coefficients, chosen by {_sizes_folds(sizes)}-fold "
+            "held-out relative error" if grown else
+            f"size: the smallest verified ({', '.join(kept)}) had the lowest "
+            f"{_sizes_folds(sizes)}-fold held-out relative error")
+    if grown and kept:
+        said += f" ({', '.join(kept)}: the smallest kept)"
+    return said + "; --smallest-size keeps the fewest coefficients"
+
+
+def _sizes_folds(sizes: list[dict[str, Any] | None]) -> int:
+    """The folds the held-out sizes were scored on."""
+    return int(next(r["folds"] for r in sizes if r is not None))
 
 
 def fit_brdf_file(request: BRDFFitRequest | str | Path) -> BRDFFitReport:
