@@ -142,8 +142,8 @@ def _split_channels(values: tuple[str, ...]) -> list[str]:
                    "whose unsampled pairs a fit may otherwise fill with highlights; off "
                    "for a full MERL table.")
 @click.option("--held-out-size/--smallest-size", "held_out_size", default=None,
-              help="Fits of log values: also polish the smallest verified fit at 1.25, 1.5 "
-                   "and 2 times its n and m, and keep the size with the lowest 5-fold "
+              help="Fits of log values: also polish the smallest verified fit at 1.25 and "
+                   "1.5 times its n and m, and keep the size with the lowest 5-fold "
                    "held-out relative error when it is proved valid (brdf.held_out_size in "
                    "the fit file). Default: on for scattered measurements with no width or "
                    "size option; --smallest-size keeps the fewest coefficients.")
