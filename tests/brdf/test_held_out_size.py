@@ -126,3 +126,16 @@ def test_the_fit_says_which_sizes_held_out_samples_chose(both):
     kept = dict(rec, chosen=rec["searched"])
     assert _held_out_size_note([kept, None], ["Y", "Z"]).startswith(
         f"size: the smallest verified (Y {sum(rec['searched'])}) had the lowest")
+
+
+def test_held_out_size_is_refused_where_it_means_nothing():
+    """It chooses the size of a fit of log values: asked for with p / q or a shared
+    denominator it is an error, not an option silently dropped."""
+    from ratfit.errors import InputError
+
+    ds = _noisy(60, 0.1)
+    chooses = r"held_out_size \(--held-out-size\) chooses the size of a fit of log values"
+    with pytest.raises(InputError, match=chooses + r".*\(p / q\): drop it, or fit log"):
+        fit_brdf(ds, values="linear", held_out_size=True, time_limit=None)
+    with pytest.raises(InputError, match=chooses + ".*shared denominator: drop it$"):
+        fit_brdf(ds, shared_denominator=True, held_out_size=True, time_limit=None)

@@ -516,6 +516,12 @@ def fit_brdf(ds: Dataset, *, dt: float | None = None, abs_width: AbsWidth = None
     frame = UNKNOWN_PARAMETRIZATION if known is None else known.name
     # (the fitter's options check the word; a shared denominator refuses "log")
     values = resolve_values(values, ds, frame, shared_denominator, widths_given)
+    if fitter_params.get("held_out_size") and (shared_denominator or values != "log"):
+        form = ("p_c / q with a shared denominator: drop it" if shared_denominator
+                else "the values themselves (p / q): drop it, or fit log values "
+                     "(--values log)")
+        raise InputError("held_out_size (--held-out-size) chooses the size of a fit of log "
+                         f"values; this fit is of {form}")
     size_given = any(fitter_params.get(k) is not None for k in ("max_total", "n", "m", "total"))
     max_given = fitter_params.get("max_total") is not None
     fitter_params = {**fitter_params, "values": values}
