@@ -1386,8 +1386,6 @@ class BRDFFitter(RationalFitter):
         return replace(res, message=f"{res.message}; the smallest size kept (held-out "
                                     f"relative RMSE by total: {told}{tail})")
 
-
-
     @contextlib.contextmanager
     def _full_proof(self, j: int, on: bool = True) -> Iterator[None]:
         """Channel ``j``'s candidates get the full validity proof inside the block
