@@ -1331,12 +1331,16 @@ class BRDFFitter(RationalFitter):
         rf = rf.to_family()
         y = np.clip(np.asarray(y[:, j], dtype=float), 0.0, None)
         fold = np.random.default_rng(0).permutation(seg.n_points) % GROWTH_FOLDS
-        pts = self._configurations(rf.space.domain)
-        if self._points_of(j):
-            pts = np.concatenate([pts, *self._points_of(j)])
+        pts = self._validity_points(j, rf.space.domain)
         ceiling = self._row_ceiling(j, pts)
-        limit = self.work_limit
-        work = WorkBudget(None if limit is None else max(1, int(limit * POLISH_WORK_SHARE)))
+        work = WorkBudget(self._polish_share())
+
+        def step(fit: RationalFunction, target: Segments, w: Array) -> RationalFunction | None:
+            if work.exhausted:
+                return None
+            return polish_fit(fit, target, 0, weights=w, positive_at=pts, solver=self.solver,
+                              numerator=False, ceiling=ceiling, method="qp", work=work)
+
         sizes = [(rf.n, rf.m)] + [(int(np.ceil(g * rf.n)), int(np.ceil(g * rf.m)))
                                   for g in GROWTH_FACTORS]
         scores: list[float] = []
@@ -1347,17 +1351,8 @@ class BRDFFitter(RationalFitter):
                 train = fold != k
                 part = Segments(seg.x[train], seg.lo[train, j:j + 1], seg.hi[train, j:j + 1],
                                 None, (seg.names[j],))
-
-                def step(fit: RationalFunction, target: Segments, w: Array
-                         ) -> RationalFunction | None:
-                    if work.exhausted:
-                        return None
-                    return polish_fit(fit, target, 0, weights=w, positive_at=pts,
-                                      solver=self.solver, numerator=False, ceiling=ceiling,
-                                      method="qp", work=work)
-
                 fit = _relative_steps(start, part, 0, y[train], step)[0]
-                sq += _relative_sq(fit, seg.x[~train], y[~train])
+                sq += _relative_sq(fit(seg.x[~train]), y[~train])
             scores.append(float(np.sqrt(sq / seg.n_points)))
         record: dict[str, Any] = {
             "searched": [rf.n, rf.m], "sizes": [list(v) for v in sizes],
@@ -1622,9 +1617,7 @@ class BRDFFitter(RationalFitter):
         """
         from ratfit.core.polish import polish_fit
 
-        pts = self._configurations(rf.space.domain) if self.physical else None
-        if pts is not None and self._points_of(j):
-            pts = np.concatenate([pts, *self._points_of(j)])
+        pts = self._validity_points(j, rf.space.domain) if self.physical else None
         for _ in range(rounds):
             if _past(deadline) or (work is not None and work.exhausted):
                 return None
@@ -1667,10 +1660,22 @@ class BRDFFitter(RationalFitter):
         by both (no limit without a work limit)."""
         budgets = self.__dict__.setdefault("_polish_budgets", {})
         if j not in budgets:
-            limit = self.work_limit
-            budgets[j] = WorkBudget(None if limit is None
-                                    else max(1, int(limit * POLISH_WORK_SHARE)))
+            budgets[j] = WorkBudget(self._polish_share())
         return budgets[j]
+
+    def _polish_share(self) -> int | None:
+        """:data:`POLISH_WORK_SHARE` of ``work_limit`` QP solves (None: no limit), the
+        budget of a polish and of each part of :meth:`_held_out_sized`."""
+        limit = self.work_limit
+        return None if limit is None else max(1, int(limit * POLISH_WORK_SHARE))
+
+    def _validity_points(self, j: int, domain: Array) -> Array | None:
+        """The validity grid of ``domain`` and the points channel ``j``'s candidates
+        failed at (:meth:`_points_of`): where a polish keeps q > 0 and the ceiling."""
+        pts = self._configurations(domain)
+        if pts is not None and self._points_of(j):
+            pts = np.concatenate([pts, *self._points_of(j)])
+        return pts
 
     def _repair(self, rf: RationalFunction, seg: Segments, j: int,
                 work: WorkBudget | None = None
@@ -1822,11 +1827,11 @@ class BRDFFitter(RationalFitter):
                        denominator_sign_changes=ver.denominator_sign_changes or chk.min_q <= 0)
 
 
-def _relative_sq(fit: RationalFunction, x: Array, y: Array) -> float:
-    """Sum of log((f + e) / (y + e))^2 over the points ``x`` of values ``y`` for a fit of
-    log values (f = exp(fit)), e = :data:`~ratfit.brdf.options.NOISE_FLOOR`."""
+def _relative_sq(g: Array, y: Array) -> float:
+    """Sum of log((f + e) / (y + e))^2 over values ``y`` for a fit of log values whose
+    p / q there is ``g`` (f = exp(g)), e = :data:`~ratfit.brdf.options.NOISE_FLOOR`."""
     with np.errstate(all="ignore"):
-        f = np.exp(np.minimum(fit(x), 700.0))
+        f = np.exp(np.minimum(g, 700.0))
         err = np.log((f + NOISE_FLOOR) / (y + NOISE_FLOOR))
     return float(np.sum(np.where(np.isfinite(err), err, 700.0) ** 2))
 
@@ -1842,24 +1847,25 @@ def _relative_steps(start: RationalFunction, seg: Segments, j: int, y: Array,
     counts again. Up to :data:`GROWTH_STEPS` steps, each kept only when the true error
     falls; returns the fit and whether any step was kept."""
     fit, moved = start, False
-    best = _relative_sq(fit, seg.x, y)
+    g0 = fit(seg.x)
+    best = _relative_sq(g0, y)
     for _ in range(GROWTH_STEPS):
         with np.errstate(all="ignore"):
-            g0 = fit(seg.x)
             f0 = np.exp(np.minimum(g0, 700.0))
             w = f0 / (f0 + NOISE_FLOOR)
             target = g0 - np.log((f0 + NOISE_FLOOR) / (y + NOISE_FLOOR)) / w
         if not (np.all(np.isfinite(target)) and np.all(w > 0)):
             break
-        center = np.array(seg.center if seg.y is not None else 0.5 * (seg.lo + seg.hi))
+        center = np.array(seg.center)  # (the segments' midpoints where y is None)
         center[:, j] = target
         cand = step(fit, Segments(seg.x, seg.lo, seg.hi, center, seg.names), w)
         if cand is None:
             break
-        err = _relative_sq(cand, seg.x, y)
+        g1 = cand(seg.x)
+        err = _relative_sq(g1, y)
         if not err < best:
             break
-        fit, best, moved = cand, err, True
+        fit, g0, best, moved = cand, g1, err, True
     return fit, moved
 
 

@@ -306,22 +306,18 @@ def _held_out_size_note(sizes: list[dict[str, Any] | None], names: list[str]) ->
         if rec is None:
             continue
         searched, chosen = sum(rec["searched"]), sum(rec["chosen"])
-        if chosen != searched:
+        if rec["chosen"] != rec["searched"]:
             grown.append(f"{name} {searched} -> {chosen}")
         else:
             kept.append(f"{name} {searched}")
-    said = (f"size: {', '.join(grown)} coefficients, chosen by {_sizes_folds(sizes)}-fold "
-            "held-out relative error" if grown else
-            f"size: the smallest verified ({', '.join(kept)}) had the lowest "
-            f"{_sizes_folds(sizes)}-fold held-out relative error")
+    folds = next(int(r["folds"]) for r in sizes if r is not None)
+    said = (f"size: {', '.join(grown)} coefficients, chosen by {folds}-fold held-out "
+            "relative error" if grown else
+            f"size: the smallest verified ({', '.join(kept)}) had the lowest {folds}-fold "
+            "held-out relative error")
     if grown and kept:
         said += f" ({', '.join(kept)}: the smallest kept)"
     return said + "; --smallest-size keeps the fewest coefficients"
-
-
-def _sizes_folds(sizes: list[dict[str, Any] | None]) -> int:
-    """The folds the held-out sizes were scored on."""
-    return int(next(r["folds"] for r in sizes if r is not None))
 
 
 def fit_brdf_file(request: BRDFFitRequest | str | Path) -> BRDFFitReport:
