@@ -10,14 +10,15 @@ e = 1e-3 1/sr) of the rational fit and of the better model for each metric, the
 fold fits' coefficient counts, and whether the rational fit wins all three.
 
     python benchmarks/bench_holdout.py [--data DIR] [--only NAME ...] [--k 5] [--workers W]
-        [--fit KEY=VALUE ...]
+        [--fit KEY=VALUE ...] [--save DIR]
 
 ``--workers W`` fits the folds (of every material at once) and the models in W
 processes; every fold fit is bounded by counted work, so the table is the same for
 any W (seconds aside: with W > 1 a material's "s" is the sum of its fold fits' own
 times, not the wall time). ``--fit KEY=VALUE`` (repeatable) fits every fold with a
 non-default option (a keyword of ``fit_brdf_auto``), to choose defaults by held-out
-error.
+error. ``--save DIR`` keeps every held-out prediction (``DIR/<material>.npz``: the
+directions, values, the rational fit's and each model's predictions).
 """
 
 from __future__ import annotations
@@ -44,11 +45,13 @@ METRICS = ("rmse", "cos_rmse", "rel_rmse")
 OWN = "ISOTROPIC_TV_TL_DPHI"  # what `ratfit brdf fit` reads Cornell's Cartesian pairs as
 
 
-def models_held_out(ds, k: int, seed: int) -> dict[str, dict[str, dict[str, float]]]:
-    """Each model fitted on the training folds, evaluated on the held-out one."""
+def models_held_out(ds, k: int, seed: int
+                    ) -> tuple[dict[str, dict[str, dict[str, float]]], dict[str, np.ndarray]]:
+    """Each model fitted on the training folds, evaluated on the held-out one: the
+    metrics per model and the held-out predictions per model."""
     L, V = get_parametrization(OWN).to_dirs(ds.x)
     y = np.asarray(ds.y)
-    out = {}
+    out, preds = {}, {}
     for spec in MODELS:
         pred = np.full(y.shape, np.nan)
         for test in fold_indices(ds.n_points, k, seed):
@@ -57,7 +60,17 @@ def models_held_out(ds, k: int, seed: int) -> dict[str, dict[str, dict[str, floa
                            channel_names=ds.output_names, starts=6)
             pred[test] = mf.eval_dirs(L[test], V[test])
         out[spec] = holdout_metrics(pred, y, L[:, 2], ds.output_names)
-    return out
+        preds[spec] = pred
+    return out, preds
+
+
+def save_predictions(path: Path, ds, res, model_preds: dict[str, np.ndarray]) -> None:
+    """Every sample's held-out prediction (the rational fit's and each model's), its
+    value and directions, for a closer look at where the errors lie."""
+    L, V = get_parametrization(OWN).to_dirs(ds.x)
+    np.savez_compressed(path, L=L, V=V, y=np.asarray(ds.y), rational=res.predictions,
+                        channels=np.asarray(ds.output_names),
+                        **{f"model_{spec}": p for spec, p in model_preds.items()})
 
 
 def _timed_fold(frames, test, options: dict):
@@ -90,6 +103,9 @@ def main() -> None:
     ap.add_argument("--fit", action="append", default=[], metavar="KEY=VALUE",
                     help="a fit option other than the default, e.g. polish_error=relative "
                          "(repeatable; keyword of ratfit.brdf.fitter.fit_brdf_auto)")
+    ap.add_argument("--save", type=Path, metavar="DIR",
+                    help="also write each material's held-out predictions to "
+                         "DIR/<material>.npz (rational fit and models)")
     add_markdown_option(ap)
     args = ap.parse_args()
     rep = report(args, __file__)
@@ -115,7 +131,10 @@ def main() -> None:
             res = pooled_result(frames[name], args.k, args.seed, [o for o, _t in done])
             print(f"{name}: {res.folds_verified} of {args.k} fold fits verified, {secs:.0f} s",
                   file=sys.stderr, flush=True)
-            models = model_runs[name].result()
+            models, model_preds = model_runs[name].result()
+            if args.save is not None:
+                args.save.mkdir(parents=True, exist_ok=True)
+                save_predictions(args.save / f"{name}.npz", frames[name][-1], res, model_preds)
             sizes = [f["coefficients"] for f in res.folds if f["coefficients"] is not None]
             coefs = f"{min(sizes)}-{max(sizes)}" if sizes else "none"
             for ch in frames[name][0].output_names:
