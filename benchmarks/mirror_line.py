@@ -34,6 +34,37 @@ def _fmt(values: np.ndarray) -> str:
     return " / ".join(f"{v:.3g}" for v in values)
 
 
+def _figure(rep, degrees: np.ndarray, curves: dict[str, np.ndarray],
+            near: dict[str, tuple[np.ndarray, np.ndarray]]) -> None:
+    """One panel per fit: each channel along the mirror direction (lines) and the samples
+    within MIRROR of it (dots), on a log scale."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    colours = ("tab:red", "tab:green", "tab:blue")
+    fig, axes = plt.subplots(1, len(curves), figsize=(3.2 * len(curves), 3.2), sharey=True,
+                             squeeze=False)
+    for ax, (name, f) in zip(axes[0], curves.items(), strict=True):
+        for j in range(f.shape[1]):
+            c = colours[j % 3]
+            ax.semilogy(degrees, np.maximum(f[:, j], 1e-4), color=c, lw=1.2)
+            if name in near:
+                ax.semilogy(near[name][0], np.maximum(near[name][1][:, j], 1e-4), "o",
+                            color=c, ms=4, mfc="none")
+        ax.set_title(name, fontsize=9)
+        ax.set_xlabel("incidence = theta_d (deg)", fontsize=8)
+        ax.set_ylim(1e-4, 1e4)
+        ax.grid(True, which="major", alpha=0.3)
+    axes[0][0].set_ylabel("fit at the mirror pair (1/sr)", fontsize=8)
+    fig.tight_layout()
+    rep.figure(fig, rep.stem("mirror_line"),
+               "each fit along the mirror direction (lines: R, G, B) and the samples within "
+               f"{MIRROR} rad of it (circles); values below 1e-4 drawn at 1e-4")
+    plt.close(fig)
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("fits", type=Path, nargs="+", metavar="FIT")
@@ -44,11 +75,18 @@ def main() -> None:
     t = np.radians(np.asarray(DEGREES, dtype=float))
     L = np.stack([np.sin(t), np.zeros_like(t), np.cos(t)], axis=1)
     V = L * np.array([-1.0, 1.0, 1.0])
-    line_rows, sample_rows = [], []
+    sample_rows: list[list[str]] = []
+    lines: dict[str, np.ndarray] = {}
+    near_samples: dict[str, tuple[np.ndarray, np.ndarray]] = {}
+    # the curve of the figure: every half degree
+    fine = np.radians(np.arange(1.0, 89.5, 0.5))
+    Lf = np.stack([np.sin(fine), np.zeros_like(fine), np.cos(fine)], axis=1)
+    Vf = Lf * np.array([-1.0, 1.0, 1.0])
+    curves: dict[str, np.ndarray] = {}
     for path in args.fits:
         fit = load_brdf_fit(path)
-        f = fit.eval_dirs(L, V)
-        line_rows += [[path.stem, str(d), _fmt(row)] for d, row in zip(DEGREES, f, strict=True)]
+        lines[path.stem] = fit.eval_dirs(L, V)
+        curves[path.stem] = fit.eval_dirs(Lf, Vf)
         data = args.data / "cornell" / f"{path.stem}.brdf"
         if not data.exists():
             continue
@@ -61,13 +99,17 @@ def main() -> None:
         near = near[np.argsort(np.arccos(np.clip(Ls[near, 2], -1.0, 1.0)))]
         y = np.asarray(ds.y)[near]
         g = fit.eval_dirs(Ls[near], Vs[near])
+        near_samples[path.stem] = (np.degrees(np.arccos(Ls[near, 2])), y)
         for i, k in enumerate(near):
             sample_rows.append([path.stem, f"{np.degrees(np.arccos(Ls[k, 2])):.1f}",
                                 f"{theta_h[k]:.4f}", _fmt(y[i]), _fmt(g[i]),
                                 _fmt(g[i] / np.where(y[i] > 0, y[i], np.nan))])
+    names = list(lines)
     rep.table("each fit at the mirror pair (theta_h = 0) of each incidence angle "
               "(1/sr, channels in the fit's order)",
-              ["fit", "incidence (deg)", "fit"], line_rows)
+              ["incidence (deg)", *names],
+              [[str(d)] + [_fmt(lines[n][i]) for n in names] for i, d in enumerate(DEGREES)])
+    _figure(rep, np.degrees(fine), curves, near_samples)
     if sample_rows:
         rep.table(f"the samples within {MIRROR} rad of the mirror direction: value, fit, "
                   "fit / value per channel",
