@@ -25,24 +25,11 @@ from pathlib import Path
 import numpy as np
 from _bench import add_markdown_option, report  # benchmarks/_bench.py
 
-E = 1e-3  # 1/sr: the relative error's floor (ratfit.brdf.holdout.REL_FLOOR)
+from ratfit.brdf.holdout import holdout_metrics
+from ratfit.brdf.parametrizations import get_parametrization
+
 MIRROR = 0.02  # rad of theta_h: "at the mirror direction"
-
-
-def _angles(L: np.ndarray, V: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """theta_h and theta_d of each pair."""
-    H = L + V
-    H /= np.linalg.norm(H, axis=1, keepdims=True)
-    theta_h = np.arccos(np.clip(H[:, 2], -1.0, 1.0))
-    theta_d = np.arccos(np.clip(np.sum(L * H, axis=1), -1.0, 1.0))
-    return theta_h, theta_d
-
-
-def _errors(p: np.ndarray, y: np.ndarray, cos_l: np.ndarray) -> tuple[float, float, float]:
-    e = p - y
-    rel = np.log(np.maximum(p + E, 1e-300) / (y + E))
-    return (float(np.sqrt(np.mean(e**2))), float(np.sqrt(np.mean((e * cos_l) ** 2))),
-            float(np.sqrt(np.mean(rel**2))))
+METRICS = ("rmse", "cos_rmse", "rel_rmse")
 
 
 def main() -> None:
@@ -60,11 +47,14 @@ def main() -> None:
         z = np.load(path)
         L, V, y, rat = z["L"], z["V"], z["y"], z["rational"]
         models = {k.removeprefix("model_"): z[k] for k in z.files if k.startswith("model_")}
-        theta_h, theta_d = _angles(L, V)
-        cos_l = L[:, 2]
+        theta_h, theta_d = get_parametrization("RUSIN_TH_TD_PD").from_dirs(L, V)[:, :2].T
+        names = [str(c) for c in z["channels"]]
         top = int(np.argmax(np.max(y, axis=1)))
         rest = np.arange(len(y)) != top
-        for j, ch in enumerate(z["channels"]):
+        # the three held-out errors of each predictor over every sample but the largest
+        rest_errors = {name: holdout_metrics(p[rest], y[rest], L[rest, 2], names)
+                       for name, p in {"rational": rat, **models}.items()}
+        for j, ch in enumerate(names):
             e2 = (rat[:, j] - y[:, j]) ** 2
             i = int(np.argmax(e2))
             best = min(models, key=lambda k: float(np.mean((models[k][:, j] - y[:, j]) ** 2)))
@@ -72,17 +62,16 @@ def main() -> None:
             k = int(np.argmax(m2))
             near = e2[theta_h < MIRROR].sum() / e2.sum()
             worst_rows.append([
-                path.stem, str(ch), f"{e2[i] / e2.sum():.2f}",
+                path.stem, ch, f"{e2[i] / e2.sum():.2f}",
                 f"{theta_h[i]:.3f} / {theta_d[i]:.3f}", f"{y[i, j]:.3g}",
                 f"{rat[i, j]:.3g}", f"{models[best][i, j]:.3g}", f"{near:.2f}",
                 f"{m2[k] / m2.sum():.2f}"])
-            r = _errors(rat[rest, j], y[rest, j], cos_l[rest])
-            b = [min(_errors(p[rest, j], y[rest, j], cos_l[rest])[q] for p in models.values())
-                 for q in range(3)]
+            r = [rest_errors["rational"][ch][q] for q in METRICS]
+            b = [min(rest_errors[m][ch][q] for m in models) for q in METRICS]
             won = all(r[q] < b[q] for q in range(3))
             wins += won
             total += 1
-            rest_rows.append([path.stem, str(ch)] + [
+            rest_rows.append([path.stem, ch] + [
                 f"{r[q]:.4g} / {b[q]:.4g} ({b[q] / r[q]:.2f}x)" for q in range(3)]
                 + ["yes" if won else "no"])
     rep.table("the rational fit's worst held-out sample, per channel (share: of the channel's "

@@ -26,8 +26,16 @@ from ratfit.brdf.parametrizations import get_parametrization
 
 REPO = Path(__file__).resolve().parents[1]
 OWN = "ISOTROPIC_TV_TL_DPHI"  # what `ratfit brdf fit` reads Cornell's Cartesian pairs as
+HALF_DIFF = get_parametrization("RUSIN_TH_TD_PD")  # (theta_h, theta_d, phi_d)
 MIRROR = 0.02  # rad of theta_h
 DEGREES = (5, 10, 20, 30, 40, 50, 60, 65, 70, 75, 77, 79, 80, 85)
+
+
+def _mirror_pairs(degrees: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(L, V) of the mirror pair (theta_h = 0) at each incidence angle (theta_d)."""
+    td = np.radians(np.asarray(degrees, dtype=float))
+    zero = np.zeros_like(td)
+    return HALF_DIFF.to_dirs(np.stack([zero, td, zero], axis=1))
 
 
 def _fmt(values: np.ndarray) -> str:
@@ -72,16 +80,13 @@ def main() -> None:
     add_markdown_option(ap)
     args = ap.parse_args()
     rep = report(args, __file__)
-    t = np.radians(np.asarray(DEGREES, dtype=float))
-    L = np.stack([np.sin(t), np.zeros_like(t), np.cos(t)], axis=1)
-    V = L * np.array([-1.0, 1.0, 1.0])
+    L, V = _mirror_pairs(np.asarray(DEGREES))
     sample_rows: list[list[str]] = []
     lines: dict[str, np.ndarray] = {}
     near_samples: dict[str, tuple[np.ndarray, np.ndarray]] = {}
     # the curve of the figure: every half degree
-    fine = np.radians(np.arange(1.0, 89.5, 0.5))
-    Lf = np.stack([np.sin(fine), np.zeros_like(fine), np.cos(fine)], axis=1)
-    Vf = Lf * np.array([-1.0, 1.0, 1.0])
+    fine = np.arange(1.0, 89.5, 0.5)
+    Lf, Vf = _mirror_pairs(fine)
     curves: dict[str, np.ndarray] = {}
     for path in args.fits:
         fit = load_brdf_fit(path)
@@ -92,16 +97,16 @@ def main() -> None:
             continue
         ds = samples_dataset(read_brdf(data), OWN)
         Ls, Vs = get_parametrization(OWN).to_dirs(ds.x)
-        H = Ls + Vs
-        H /= np.linalg.norm(H, axis=1, keepdims=True)
-        theta_h = np.arccos(np.clip(H[:, 2], -1.0, 1.0))
+        theta_h = HALF_DIFF.from_dirs(Ls, Vs)[:, 0]
         near = np.flatnonzero(theta_h < MIRROR)
-        near = near[np.argsort(np.arccos(np.clip(Ls[near, 2], -1.0, 1.0)))]
+        theta_l = np.degrees(np.arccos(np.clip(Ls[near, 2], -1.0, 1.0)))
+        order = np.argsort(theta_l)
+        near, theta_l = near[order], theta_l[order]
         y = np.asarray(ds.y)[near]
         g = fit.eval_dirs(Ls[near], Vs[near])
-        near_samples[path.stem] = (np.degrees(np.arccos(Ls[near, 2])), y)
+        near_samples[path.stem] = (theta_l, y)
         for i, k in enumerate(near):
-            sample_rows.append([path.stem, f"{np.degrees(np.arccos(Ls[k, 2])):.1f}",
+            sample_rows.append([path.stem, f"{theta_l[i]:.1f}",
                                 f"{theta_h[k]:.4f}", _fmt(y[i]), _fmt(g[i]),
                                 _fmt(g[i] / np.where(y[i] > 0, y[i], np.nan))])
     names = list(lines)
@@ -109,7 +114,7 @@ def main() -> None:
               "(1/sr, channels in the fit's order)",
               ["incidence (deg)", *names],
               [[str(d)] + [_fmt(lines[n][i]) for n in names] for i, d in enumerate(DEGREES)])
-    _figure(rep, np.degrees(fine), curves, near_samples)
+    _figure(rep, fine, curves, near_samples)
     if sample_rows:
         rep.table(f"the samples within {MIRROR} rad of the mirror direction: value, fit, "
                   "fit / value per channel",
