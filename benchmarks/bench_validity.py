@@ -89,7 +89,7 @@ def phi_d_spread(fit, k: int = 2000) -> np.ndarray:
 
 def main() -> None:
     from ratfit.brdf.fitter import load_brdf_fit
-    from ratfit.brdf.validity import StepCeiling
+    from ratfit.brdf.validity import envelope_from_dict
     from ratfit.render.material import FitMaterial
 
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
@@ -119,9 +119,8 @@ def main() -> None:
             bad = int(np.sum(~np.isfinite(r) | (r < 0)) + np.sum(~np.isfinite(cv[:, j])
                                                                   | (cv[:, j] < 0)))
             pr = proofs[j] if j < len(proofs) else None
-            steps = StepCeiling.from_dict(pr)
-            env = "-" if steps is None else \
-                f"{np.max(r / np.exp(steps.at(kept[:, steps.column]))):.3g}"
+            steps = envelope_from_dict(pr)
+            env = "-" if steps is None else f"{np.max(r / np.exp(steps.at_points(kept))):.3g}"
             rows.append([
                 f"{path.stem}", name, f"{np.min(r):.4g}", f"{np.min(cv[:, j]):.4g}",
                 f"{np.min(mat[:, j]):.4g}", str(bad), f"{np.max(r):.4g}",

@@ -21,13 +21,23 @@ from ratfit.brdf.fitter import (
     BRDFFitter,
     brdf_segments,
     fit_brdf,
+    theta_d_column,
     theta_h_column,
 )
 from ratfit.brdf.io import read_brdf, samples_dataset
 from ratfit.brdf.parametrizations import get_parametrization
-from ratfit.brdf.validity import StepCeiling, reprove_saved
+from ratfit.brdf.validity import (
+    ENVELOPE_D_STEP,
+    SampleCeiling,
+    StepCeiling,
+    envelope_from_dict,
+    grazing,
+    reprove_saved,
+    theta_d_growth,
+)
 from ratfit.core.polish import _positivity_rows
 from ratfit.core.positivity import prove_below
+from ratfit.core.segments import Segments
 from ratfit.io.fitfile import load_fit, scope_text
 
 
@@ -40,6 +50,29 @@ def _by_hand(theta_h, top, t, slack):
         near = th >= v - slack
         out.append(np.log(LOG_CEILING_FACTOR * (top[near].max() if near.any()
                                                 else top[np.argmax(th)])))
+    return np.array(out)
+
+
+def _by_hand2(theta_h, theta_d, top, t, d, slack, growth, step=None, highlight=0.01):
+    """The largest log(2 top_i) - growth x max(0, g(theta_d_i - slack) - g(d)), g = -log cos
+    (no fall for the samples under ``highlight`` of the largest), among the
+    samples with theta_h_i >= t - slack (past the farthest: that one's), with d taken at
+    the theta_d step at or below it (``step`` apart from 0 to pi / 2; None: d
+    itself): the envelope over (theta_h, theta_d), one point at a time."""
+    th, td, top = (np.asarray(a, float) for a in (theta_h, theta_d, top))
+    v = np.log(LOG_CEILING_FACTOR * top)
+    grows = top >= highlight * top.max()
+
+    def g(a):  # -log cos, 0 below 0
+        return -np.log(np.cos(np.clip(a, 0.0, np.pi / 2)))
+
+    out = []
+    for u, w in zip(np.atleast_1d(t), np.atleast_1d(d), strict=True):
+        near = th >= min(u, th.max() + slack) - slack
+        if step is not None:  # the step at or below w from 0 to pi / 2
+            w = step * np.clip(np.floor(w / step), 0, round(np.pi / 2 / step))
+        fall = growth * np.maximum(0.0, g(td[near] - slack) - g(w)) * grows[near]
+        out.append(np.max(v[near] - fall))
     return np.array(out)
 
 
@@ -61,6 +94,104 @@ def test_theta_h_is_found_among_the_kept_coordinates() -> None:
     assert theta_h_column("RUSIN_TH_TD_PD", (1, 0, 2)) == 1
     assert theta_h_column("RUSIN_TH_TD_PD", (1, 2)) is None  # theta_h dropped as constant
     assert theta_h_column("ISOTROPIC_TV_TL_DPHI", None) is None
+    assert theta_d_column("RUSIN_TH_TD_SYM", None) == 1
+    assert theta_d_column("RUSIN_TH_TD_PD", (1, 0, 2)) == 0
+    assert theta_d_column("RUSIN_TH_TD_PD", (0, 2)) is None
+    assert theta_d_column("RUSIN_TH", None) is None
+
+
+def test_the_envelope_over_theta_d_grows_toward_grazing_as_the_samples_do() -> None:
+    """cayman's grazing mirror sample (80 degrees, 737 1/sr) made the theta_h envelope
+    allow twice that at the mirror direction at every incidence; over (theta_h,
+    theta_d) it allows a sample's value nearer the normal only less the growth toward
+    grazing, as a power of 1 / cos theta_d, that the samples show."""
+    # mirror samples at 40, 60 and 80 degrees and a diffuse one far from the mirror
+    th = [0.01, 0.01, 0.01, 0.8]
+    td = np.radians([40.0, 60.0, 80.0, 30.0])
+    top = [4.0, 9.0, 700.0, 0.05]
+    # the fastest growth within 0.01 of theta_h, among the samples above 1 % of the peak
+    # (60 -> 80 degrees; the 40-degree one is below 7), in powers of 1 / cos
+    g = theta_d_growth(th, td, np.array(top)[:, None])
+    cos = np.cos(np.radians([60.0, 80.0]))
+    assert g == pytest.approx(np.log(700.0 / 9.0) / np.log(cos[0] / cos[1]))
+    assert 4.0 < g < 4.2
+    assert theta_d_growth(th, td, np.array([top, top]).T) == g  # channels alike
+    assert theta_d_growth([0.0, 0.5], [0.2, 0.9], np.array([[1.0], [50.0]])) == 0.0
+    np.testing.assert_allclose(grazing([-0.1, 0.0, np.pi / 3]), [0.0, 0.0, np.log(2.0)])
+    env = SampleCeiling.of_samples(0, 1, th, td, top, ENVELOPE_SLACK, LOG_CEILING_FACTOR, g)
+    assert env.growth == g
+    d = np.radians([40.0, 60.0, 70.0, 80.0, 30.0])
+    at = np.exp(env.at2([0.0, 0.0, 0.0, 0.0, 0.5], d))
+    exact = np.exp(_by_hand2(th, td, top, [0.0] * 4 + [0.5], d, ENVELOPE_SLACK, g))
+    # the staircase is never above the formula, and at most one step's growth under it
+    assert np.all(at <= exact * (1 + 1e-12))
+    step = g * (grazing(d + ENVELOPE_D_STEP) - grazing(d))
+    assert np.all(at >= exact * np.exp(-step) * (1 - 1e-12))
+    # 60 and 70 degrees: the 80-degree sample divided by (cos 80 - slack / cos d)^g
+    for k in (1, 2):
+        assert exact[k] == pytest.approx(1400.0 * (np.cos(np.radians(80.0) - ENVELOPE_SLACK)
+                                                   / np.cos(d[k])) ** g)
+    assert 18.0 < exact[1] < 60.0 and exact[2] < 250.0  # 50 and 239, not 1 400
+    assert exact[3] == pytest.approx(1400.0)
+    # the theta_h envelope allows the grazing peak at every incidence
+    steps = StepCeiling.of_samples(0, th, top, ENVELOPE_SLACK, LOG_CEILING_FACTOR)
+    assert np.exp(steps.at(0.0)) == pytest.approx(1400.0)
+    # C falls with theta_h and rises with theta_d, and is its staircase everywhere
+    rng = np.random.default_rng(0)
+    t, d = rng.uniform(-0.1, 1.6, 400), rng.uniform(-0.3, 1.5, 400)
+    h = ENVELOPE_D_STEP
+    np.testing.assert_allclose(
+        env.at2(t, d), _by_hand2(th, td, top, t, d, ENVELOPE_SLACK, g, step=h), rtol=1e-12)
+    assert np.all(env.at2(t + 0.05, d) <= env.at2(t, d))
+    assert np.all(env.at2(t, d + 0.05) >= env.at2(t, d))
+    # growth 0: the theta_h envelope
+    flat = SampleCeiling.of_samples(0, 1, th, td, top, ENVELOPE_SLACK, LOG_CEILING_FACTOR, 0.0)
+    np.testing.assert_allclose(flat.at2(t, d), steps.at(t), rtol=1e-12)
+    # the samples under 1 % of the peak (7) do not grow: the diffuse one's value at
+    # theta_h 0.8 holds at every theta_d, down to the normal
+    assert env.grows.tolist() == [False, True, True, False]
+    np.testing.assert_allclose(np.exp(env.at2([0.8, 0.8], [0.0, 1.5])), 0.1, rtol=1e-12)
+    every = SampleCeiling(0, 1, env.theta_h, env.theta_d, env.log_ceiling, ENVELOPE_SLACK, g)
+    assert np.exp(every.at2(0.8, 0.0)) < 0.09  # had it grown
+
+
+def test_samples_that_never_decide_the_envelope_are_dropped_without_changing_it() -> None:
+    rng = np.random.default_rng(1)
+    th, td = rng.uniform(0, 1.4, 500), rng.uniform(0.1, 1.4, 500)
+    top = np.exp(rng.normal(0.0, 2.0, 500)) * np.exp(-3 * th + 2 * td)
+    env = SampleCeiling.of_samples(0, 1, th, td, top, 0.1, 2.0, 3.0)
+    assert 0 < env.theta_h.size < 100  # 500 samples, the rest dominated
+    t, d = rng.uniform(-0.2, 1.6, 2000), rng.uniform(-0.2, 1.6, 2000)
+    np.testing.assert_allclose(env.at2(t, d),
+                               _by_hand2(th, td, top, t, d, 0.1, 3.0, step=ENVELOPE_D_STEP),
+                               rtol=1e-12)
+    # C at a piece's (largest theta_h, smallest theta_d) corner is its smallest value,
+    # and where the opposite corner has it too, C is that value all over the piece
+    from ratfit.core.bases import PolynomialSpace
+
+    space = PolynomialSpace("legendre", [[0.0, 1.4], [0.1, 1.4]])
+    bound = env.of_pieces(space)
+    lo = rng.uniform(-1, 1, (300, 2))
+    hi = np.minimum(lo + rng.uniform(0, 0.5, (300, 2)), 1.0)
+    c, exact = bound(lo, hi)
+    for k in range(300):
+        u = rng.uniform(lo[k], hi[k], (50, 2))
+        x = space.from_window(u)
+        inside = env.at2(x[:, 0], x[:, 1])
+        assert np.all(inside >= c[k])
+        if exact[k]:
+            assert np.all(inside == c[k])
+    assert exact.any() and not exact.all()
+    # a file's entry round-trips; a malformed one is no ceiling of either kind
+    back = envelope_from_dict({"envelope": env.to_dict()})
+    assert isinstance(back, SampleCeiling) and back.d_column == 1
+    np.testing.assert_array_equal(back.at2(t, d), env.at2(t, d))
+    assert StepCeiling.from_dict({"envelope": env.to_dict()}) is None
+    for bad in ({"d_column": 0}, {"d_column": True}, {"theta_d": [0.1]},
+                {"slack": -1.0}, {"growth": -1.0}, {"growth": None}, {"grows": [True]},
+                {"grows": [1] * env.theta_h.size}, {"grows": None},
+                {"log_ceiling": [np.nan] * env.theta_h.size}):
+        assert envelope_from_dict({"envelope": env.to_dict() | bad}) is None
 
 
 def test_the_polish_rows_take_one_ceiling_per_point() -> None:
@@ -81,12 +212,25 @@ def test_row_ceilings_are_the_envelope_under_the_channel_ceiling() -> None:
     seg = brdf_segments(ds, dt=WIDTHS["dt"], abs_width=WIDTHS["abs_width"])
     f._ceilings = np.log(LOG_CEILING_FACTOR * seg.hi.max(axis=0))
     f._envelopes = f._theta_h_envelopes(seg, ENVELOPE_SLACK)
-    pts = np.array([[0.0018, 0.5, 0.0], [0.6, 0.5, 0.0], [1.3, 0.5, 0.0]])
+    assert all(isinstance(e, SampleCeiling) for e in f._envelopes)
+    pts = np.array([[0.0018, 1.4, 0.0], [0.6, 1.4, 0.0], [1.3, 1.4, 0.0],
+                    [0.0018, 0.3, 0.0]])
     rows = f._row_ceiling(0, pts)
-    env = _by_hand(seg.x[:, 0], seg.hi[:, 0], pts[:, 0], ENVELOPE_SLACK)
+    g = theta_d_growth(seg.x[:, 0], seg.x[:, 1], seg.hi)
+    assert f._envelopes[0].growth == g > 0
+    env = _by_hand2(seg.x[:, 0], seg.x[:, 1], seg.hi[:, 0], pts[:, 0], pts[:, 1],
+                    ENVELOPE_SLACK, g, step=ENVELOPE_D_STEP)
     np.testing.assert_allclose(rows, np.minimum(env, f._ceilings[0]) - CEILING_ROW_MARGIN)
     assert rows[0] == pytest.approx(f._ceilings[0] - CEILING_ROW_MARGIN)  # the highlight
     assert rows[2] < rows[1] < rows[0]  # the lobe falls off away from the mirror
+    assert rows[3] < rows[0]  # and nearer the normal than its grazing peak
+    # a frame without theta_d keeps the envelope over theta_h
+    g = BRDFFitter(parametrization="RUSIN_TH_TD_PD", values="log", envelope=True,
+                   used_coords=(0, 2))
+    one = g._theta_h_envelopes(Segments(seg.x[:, [0, 2]], seg.lo, seg.hi, seg.y), 0.05)
+    assert isinstance(one[0], StepCeiling)
+    np.testing.assert_allclose(one[0].at(pts[:, 0]), _by_hand(seg.x[:, 0], seg.hi[:, 0],
+                                                             pts[:, 0], 0.05))
     f.envelope = False
     f._envelopes = f._theta_h_envelopes(seg, ENVELOPE_SLACK)
     assert f._row_ceiling(0, pts) == pytest.approx(f._ceilings[0] - CEILING_ROW_MARGIN)
@@ -96,8 +240,9 @@ def test_scattered_log_fits_keep_an_envelope_and_say_so() -> None:
     ds = _material(300)
     fitter, _seg, meta = fit_brdf(ds, values="log", **WIDTHS)
     assert fitter.success_ and fitter.envelope is True
-    assert meta["envelope"] == {"coordinate": "theta_h", "slack": ENVELOPE_SLACK,
+    assert meta["envelope"] == {"coordinate": "theta_h, theta_d", "slack": ENVELOPE_SLACK,
                                 "proof_slack": ENVELOPE_PROOF_SLACK,
+                                "growth": fitter._envelopes[0].growth,
                                 "factor": LOG_CEILING_FACTOR, "proved": True}
     lin = fit_brdf(ds, values="linear", **WIDTHS)
     assert lin[0].envelope is False and lin[2]["envelope"] is None
@@ -167,19 +312,21 @@ def test_log_fits_prove_their_envelope_and_a_file_is_proved_again(tmp_path) -> N
     assert fitter.success_
     proof = fitter.proofs_[0]
     assert proof.proved and proof.envelope is not None
-    assert "samples' envelope over theta_h" in proof.summary()
+    assert "samples' envelope over theta_h and theta_d" in proof.summary()
     entry = meta["proof"][0]
-    assert entry["envelope"]["column"] == 0 and len(entry["envelope"]["log_ceiling"]) >= 2
-    # the proved steps are the samples' envelope with the proof's slack
+    assert entry["envelope"]["column"] == 0 and entry["envelope"]["d_column"] == 1
+    # the proved ceiling is the samples' envelope with the proof's slack
     seg = brdf_segments(ds, dt=WIDTHS["dt"], abs_width=WIDTHS["abs_width"])
-    t = np.linspace(0.0, 1.5, 301)
-    env = _by_hand(seg.x[:, 0], seg.hi[:, 0], t, ENVELOPE_PROOF_SLACK)
-    np.testing.assert_allclose(proof.envelope.at(t), env, rtol=1e-12)
+    t, d = np.meshgrid(np.linspace(0.0, 1.5, 31), np.linspace(0.0, 1.5, 31))
+    env = _by_hand2(seg.x[:, 0], seg.x[:, 1], seg.hi[:, 0], t.ravel(), d.ravel(),
+                    ENVELOPE_PROOF_SLACK, theta_d_growth(seg.x[:, 0], seg.x[:, 1], seg.hi),
+                    step=ENVELOPE_D_STEP)
+    np.testing.assert_allclose(proof.envelope.at2(t.ravel(), d.ravel()), env, rtol=1e-12)
     path = tmp_path / "fit.json"
     save_brdf_fit(path, fitter.results_, meta)
     saved = load_fit(path)
     assert reprove_saved(saved) is True
-    assert "under the samples' envelope over theta_h" in scope_text(saved, True)
+    assert "under the samples' envelope over theta_h and theta_d" in scope_text(saved, True)
     # a lower envelope than the fit's values is not proved from the same numbers
     stated = saved.extra["brdf"]["proof"][0]["envelope"]
     stated["log_ceiling"] = [min(stated["log_ceiling"]) - 8.0] * len(stated["log_ceiling"])
@@ -192,9 +339,19 @@ def test_log_fits_prove_their_envelope_and_a_file_is_proved_again(tmp_path) -> N
         saved.extra["brdf"]["proof"][0]["envelope"] = StepCeiling(
             column, np.array([0.5]), np.array([9.0, 8.0])).to_dict()
         assert reprove_saved(saved) is False
+    for column, d_column in ((0, 2), (1, 0)):
+        saved.extra["brdf"]["proof"][0]["envelope"] = SampleCeiling(
+            column, d_column, np.array([0.5]), np.array([0.5]), np.array([9.0]), 0.1,
+            1.0, np.array([True])).to_dict()
+        assert reprove_saved(saved) is False
+    # a looser one of either kind is proved from the same numbers
     saved.extra["brdf"]["proof"][0]["envelope"] = StepCeiling(
         0, np.array([0.5]), np.array([50.0, 40.0])).to_dict()
-    assert reprove_saved(saved) is True  # a looser one is proved from the same numbers
+    assert reprove_saved(saved) is True
+    saved.extra["brdf"]["proof"][0]["envelope"] = SampleCeiling(
+        0, 1, np.array([0.5]), np.array([0.5]), np.array([50.0]), 0.1, 1.0,
+        np.array([False])).to_dict()
+    assert reprove_saved(saved) is True
 
 
 @pytest.mark.slow
@@ -211,14 +368,16 @@ def test_mystique_stays_under_its_samples_off_the_highlight(shared_data) -> None
     ds = samples_dataset(read_brdf(path), "RUSIN_TH_TD_SYM")
     rng = np.random.default_rng(3)
     L, V = above_horizon(rng, 200_000, z_min=0.0), above_horizon(rng, 200_000, z_min=0.0)
-    th = get_parametrization("RUSIN_TH_TD_SYM").from_dirs(L, V)[:, 0]
+    coords = get_parametrization("RUSIN_TH_TD_SYM").from_dirs(L, V)
+    th = coords[:, 0]
     v = fit.eval_dirs(L, V)
     off = th > 0.3
-    lo, hi = fit.saved.channels[0].rational.space.domain[0]
+    dom = np.asarray(fit.saved.channels[0].rational.space.domain)
+    x = np.clip(coords, dom[:, 0], dom[:, 1])
     for j in range(3):
         top = ds.y[ds.x[:, 0] > 0.3 - ENVELOPE_PROOF_SLACK, j].max()  # 0.05 1/sr
         assert v[off, j].max() <= LOG_CEILING_FACTOR * top * (1 + 1e-9), j
-        # and everywhere under the proved steps, at theta_h as the fit clamps it
-        steps = StepCeiling.from_dict(report.meta["proof"][j])
+        # and everywhere under the proved envelope, at the coordinates as the fit clamps
+        steps = envelope_from_dict(report.meta["proof"][j])
         assert steps is not None
-        assert np.all(v[:, j] <= np.exp(steps.at(np.clip(th, lo, hi))) * (1 + 1e-9)), j
+        assert np.all(v[:, j] <= np.exp(steps.at_points(x)) * (1 + 1e-9)), j

@@ -55,7 +55,7 @@ from ratfit.io.fitfile import SavedFit, fit_document, load_fit, save_fit
 
 if TYPE_CHECKING:  # scipy.spatial and scipy.sparse load when segments are reconciled
     from ratfit.brdf.consistency import Neighbours
-    from ratfit.brdf.validity import StepCeiling
+    from ratfit.brdf.validity import Envelope
 
 __all__ = ["AUTO_FLOOR", "BRDF_SOLVER", "DEFAULT_DT", "DEFAULT_FLOOR_REL", "BRDFFit",
            "BRDFFitter", "NOISE_NEAR", "NOISE_QUANTILE", "close_pairs", "is_auto_floor",
@@ -191,7 +191,14 @@ CEILING_ROW_MARGIN = 0.05
 #: elevation t, :data:`LOG_CEILING_FACTOR` times the largest upper end among the samples
 #: with theta_h >= t - ENVELOPE_SLACK (radians), as far from the mirror direction or
 #: farther (a lobe falls off away from it; retro-reflection and grazing peaks are samples
-#: at large theta_h, so they raise the envelope where they lie).
+#: at large theta_h, so they raise the envelope where they lie). Over theta_h alone the
+#: envelope at the mirror direction is the file's grazing peak at every incidence, and
+#: three of the five Cornell fits rose 10-1000x above their 10-70 degree mirror samples
+#: between them (cayman G 1 210 1/sr at 70 degrees, its sample 16; acryl_blue G 65 at 30
+#: degrees, its samples below 0.1). Where the frame has theta_d too, the envelope takes
+#: each sample's value less its growth from d + ENVELOPE_SLACK to its theta_d, at the
+#: fastest rate toward grazing the samples show (a highlight grows toward grazing:
+#: Fresnel and 1 / cos theta_d; :class:`~ratfit.brdf.validity.SampleCeiling`).
 ENVELOPE_SLACK = 0.05
 #: The proof holds each fit under the same envelope with twice the slack (both
 #: :class:`~ratfit.brdf.validity.StepCeiling`): its pieces are proved against the
@@ -601,11 +608,8 @@ def fit_brdf(ds: Dataset, *, dt: float | None = None, abs_width: AbsWidth = None
         "values": values,
         # the local ceiling the search and the polish kept at the validity points, and
         # the proof on the whole region with proof_slack (each channel's proof entry
-        # holds its steps)
-        "envelope": (None if fitter.__dict__.get("_envelopes") is None else
-                     {"coordinate": "theta_h", "slack": ENVELOPE_SLACK,
-                      "proof_slack": ENVELOPE_PROOF_SLACK,
-                      "factor": LOG_CEILING_FACTOR, "proved": True}),
+        # holds its samples or steps)
+        "envelope": _envelope_block(fitter.__dict__.get("_envelopes")),
     }
     sizes = fitter.__dict__.get("_sizes")
     if sizes:
@@ -1119,6 +1123,29 @@ def theta_h_column(param: str, used_coords: Sequence[int] | None) -> int | None:
     return kept.index(col) if col in kept else None
 
 
+def _envelope_block(envelopes: Sequence[Envelope] | None) -> dict[str, Any] | None:
+    """The fit file's summary of the envelopes a fit kept (None: none)."""
+    if not envelopes:
+        return None
+    growth = getattr(envelopes[0], "growth", None)
+    return {"coordinate": "theta_h" if growth is None else "theta_h, theta_d",
+            "slack": ENVELOPE_SLACK, "proof_slack": ENVELOPE_PROOF_SLACK,
+            **({} if growth is None else {"growth": growth}),
+            "factor": LOG_CEILING_FACTOR, "proved": True}
+
+
+def theta_d_column(param: str, used_coords: Sequence[int] | None) -> int | None:
+    """The column of theta_d among a fit's coordinates, or None (as :func:`theta_h_column`)."""
+    p = find_parametrization(param)
+    if p is None or "theta_d" not in p.coords:
+        return None
+    col = p.coords.index("theta_d")
+    if used_coords is None:
+        return col
+    kept = list(used_coords)
+    return kept.index(col) if col in kept else None
+
+
 def nonnegative_segments(seg: Segments) -> Segments:
     """Segments with lo raised to 0: a BRDF value is never negative, so a fit that
     goes below 0 at a sample (allowed by a wide absolute floor) is not a fit."""
@@ -1184,7 +1211,9 @@ class BRDFFitter(RationalFitter):
         frame and for scattered measurements with ratfit's widths).
     envelope : bool or None, default None
         A fit of log values in a frame with theta_h: keep p / q under the samples'
-        envelope over theta_h too (:class:`~ratfit.brdf.validity.StepCeiling`), at the
+        envelope too, over theta_h and theta_d where the frame has both
+        (:class:`~ratfit.brdf.validity.SampleCeiling`), else over theta_h
+        (:class:`~ratfit.brdf.validity.StepCeiling`), at the
         search's and the polish's points (:data:`ENVELOPE_SLACK`) and by the validity
         proof on the whole region (:data:`ENVELOPE_PROOF_SLACK`). None is off here;
         :func:`fit_brdf` turns it on for scattered measurements.
@@ -1414,23 +1443,33 @@ class BRDFFitter(RationalFitter):
         env = self.__dict__.get("_envelopes")
         if points is None or env is None:
             return top - CEILING_ROW_MARGIN
-        local = env[j].at(np.asarray(points, dtype=float)[:, env[j].column])
+        local = env[j].at_points(np.asarray(points, dtype=float))
         return np.minimum(local, top) - CEILING_ROW_MARGIN
 
-    def _proof_envelope(self, j: int) -> StepCeiling | None:
+    def _proof_envelope(self, j: int) -> Envelope | None:
         """The envelope channel ``j``'s proof holds (:data:`ENVELOPE_PROOF_SLACK`), or None."""
         steps = self.__dict__.get("_step_ceilings")
         return None if steps is None else steps[j]
 
     def _theta_h_envelopes(self, segments: Segments, slack: float
-                           ) -> list[StepCeiling] | None:
-        """Each channel's envelope of the value ``segments`` over theta_h with ``slack``
-        (:attr:`envelope`, a frame with theta_h), else None."""
-        from ratfit.brdf.validity import StepCeiling
+                           ) -> list[Envelope] | None:
+        """Each channel's envelope of the value ``segments`` with ``slack``
+        (:attr:`envelope`, a frame with theta_h): over theta_h and theta_d where the
+        frame has both (:class:`~ratfit.brdf.validity.SampleCeiling`), else over theta_h
+        (:class:`~ratfit.brdf.validity.StepCeiling`); None without :attr:`envelope`."""
+        from ratfit.brdf.validity import SampleCeiling, StepCeiling, theta_d_growth
 
         col = theta_h_column(self.parametrization, self.used_coords)
         if not self.envelope or col is None:
             return None
+        dcol = theta_d_column(self.parametrization, self.used_coords)
+        if dcol is not None:
+            # one growth for every channel: the highlight's geometry
+            th, td = segments.x[:, col], segments.x[:, dcol]
+            growth = theta_d_growth(th, td, segments.hi)
+            return [SampleCeiling.of_samples(col, dcol, th, td, segments.hi[:, j], slack,
+                                             LOG_CEILING_FACTOR, growth)
+                    for j in range(segments.n_channels)]
         return [StepCeiling.of_samples(col, segments.x[:, col], segments.hi[:, j], slack,
                                        LOG_CEILING_FACTOR)
                 for j in range(segments.n_channels)]

@@ -38,6 +38,8 @@ from ratfit.errors import InputError
 from ratfit.io.fitfile import ceiling_bound, proof_ceiling
 
 __all__ = [
+    "Envelope",
+    "SampleCeiling",
     "StepCeiling",
     "ValidityCheck",
     "ValidityProof",
@@ -45,6 +47,9 @@ __all__ = [
     "box_configurations",
     "check_validity",
     "configurations",
+    "envelope_from_dict",
+    "grazing",
+    "theta_d_growth",
     "prove_validity",
     "reprove_saved",
 ]
@@ -181,7 +186,7 @@ def check_validity(rf: RationalFunction, param: str, domain: ArrayLike | None = 
                    points: int = 150_000, starts: int = 24,
                    keep: ArrayLike | None = None,
                    values: str = "linear", ceiling: float | None = None,
-                   envelope: StepCeiling | None = None) -> ValidityCheck | None:
+                   envelope: Envelope | None = None) -> ValidityCheck | None:
     """Dense, adaptive check that q > 0 and p >= 0 on valid configurations in ``domain``
     (for ``values="log"``, where the fit is exp(p / q) > 0 wherever q > 0: q > 0 and,
     with a ``ceiling`` C, C q - p >= 0, so that the value is at most exp(C); with an
@@ -264,7 +269,7 @@ def _check_grid(p: Parametrization, dom: Array, cols: NDArray[np.int64],
 
 
 def _second(rf: RationalFunction, values: str, ceiling: float | None,
-            envelope: StepCeiling | None = None) -> Callable[[Array], Array] | None:
+            envelope: Envelope | None = None) -> Callable[[Array], Array] | None:
     """The function a valid fit keeps >= 0 beside q: p (values), C q - p (log values
     under a ceiling C: exp(p / q) <= exp(C); under an ``envelope`` too, C the lower of
     the two at each point's theta_h), or None (log values without one)."""
@@ -277,7 +282,7 @@ def _second(rf: RationalFunction, values: str, ceiling: float | None,
         return lambda x: c_top * rf.denominator(x) - rf.numerator(x)
 
     def below(x: Array) -> Array:
-        c = np.minimum(envelope.at(np.asarray(x)[:, envelope.column]), c_top)
+        c = np.minimum(envelope.at_points(x), c_top)
         return c * rf.denominator(x) - rf.numerator(x)
 
     return below
@@ -385,6 +390,14 @@ class StepCeiling:
                             side="left")
         return self.log_ceiling[k]
 
+    def at_points(self, x: ArrayLike) -> Array:
+        """C at each row of ``x`` (the fit's coordinates)."""
+        return self.at(np.asarray(x, dtype=float)[:, self.column])
+
+    def describe(self) -> str:
+        return (f"over theta_h ({self.theta_h.size + 1} steps, down to "
+                f"{ceiling_bound(float(self.log_ceiling[-1])):.3g})")
+
     def of_pieces(self, space: PolynomialSpace) -> Callable[[Array, Array],
                                                               tuple[Array, NDArray[np.bool_]]]:
         """:func:`~ratfit.core.positivity.prove_below`'s bound on pieces of ``space``'s
@@ -412,7 +425,7 @@ class StepCeiling:
         """The step ceiling a proof entry states, or None where it states none or an
         entry that is not one (a hand-edited file proves nothing by its word)."""
         env = entry.get("envelope") if isinstance(entry, dict) else None
-        if not isinstance(env, dict):
+        if not isinstance(env, dict) or "theta_d" in env:
             return None
         try:
             # (files of commit a74032d state their steps with the slack added: 0 here)
@@ -424,6 +437,249 @@ class StepCeiling:
                        np.asarray(env["log_ceiling"], dtype=float), float(slack))
         except (KeyError, TypeError, ValueError):
             return None
+
+
+#: the samples of a :class:`SampleCeiling` at this fraction of the largest or above are
+#: its highlight: they grow toward grazing (and :func:`theta_d_growth` measures them)
+HIGHLIGHT_FRACTION = 0.01
+#: :class:`SampleCeiling` is a table over its samples' distinct theta_h and this many
+#: equal steps of theta_d over [0, pi / 2] (:data:`ENVELOPE_D_STEP` apart)
+_D_LEVELS = 314
+ENVELOPE_D_STEP = 0.5 * np.pi / _D_LEVELS
+
+
+@dataclass(frozen=True)
+class SampleCeiling:
+    """A ceiling of a log fit over theta_h and theta_d, from samples i at (theta_h_i,
+    theta_d_i) with log ceilings v_i: p / q <= C(t, d) at theta_h = t, theta_d = d, with
+
+        C(t, d) = max over i with theta_h_i >= t - slack of
+                  v_i - growth * max(0, g(theta_d_i - slack) - g(d)),
+
+    g(d) = -log cos d (:func:`grazing`; t beyond the farthest sample's theta_h + slack:
+    that sample's). A sample allows its value as far from the mirror direction or
+    farther (as :class:`StepCeiling` does), at its incidence or nearer grazing, and
+    nearer the normal divided by (cos d / cos(theta_d_i - slack))^growth: a highlight
+    grows toward grazing as a power of 1 / cos theta_d (a microfacet lobe's
+    1 / (cos theta_l cos theta_v) is the square, Fresnel and shadowing change the power),
+    as fast as the samples show (:func:`theta_d_growth`), but no faster. Only the
+    highlight's samples grow (``grows``: those at :data:`HIGHLIGHT_FRACTION` of the
+    largest or above); the others keep their value at every theta_d, as the diffuse
+    part does (with every sample growing, acryl_blue B's diffuse fit / data fell from
+    0.96 to 0.58). Over theta_h alone the ceiling
+    at the mirror direction is the file's grazing peak at every incidence (cayman: 737
+    1/sr at 80 degrees), and fits rose 10-1000x above their 10-70 degree mirror samples
+    between them. ``growth`` 0 is the theta_h envelope.
+
+    C falls with t and rises with d, so its smallest value on a box is at the box's
+    (largest t, smallest d) corner, which is what the proof takes. It is computed as
+    defined at theta_d steps (:data:`ENVELOPE_D_STEP` apart at most) and taken at the
+    step at or below d: the ceiling is that staircase, a little under the formula.
+    ``column``, ``d_column``: theta_h's and theta_d's columns among the fit's
+    coordinates."""
+
+    column: int
+    d_column: int
+    theta_h: Array
+    theta_d: Array
+    log_ceiling: Array
+    slack: float = 0.0
+    growth: float = 0.0
+    # the samples whose term falls toward the normal (the highlight's); None: every one
+    grows: NDArray[np.bool_] | None = None
+
+    def __post_init__(self) -> None:
+        t = np.asarray(self.theta_h, dtype=float)
+        d = np.asarray(self.theta_d, dtype=float)
+        v = np.asarray(self.log_ceiling, dtype=float)
+        grows = (np.ones(t.shape, dtype=bool) if self.grows is None
+                 else np.asarray(self.grows))
+        cols = (self.column, self.d_column)
+        if (t.ndim != 1 or t.size == 0 or d.shape != t.shape or v.shape != t.shape
+                or grows.shape != t.shape or grows.dtype != np.bool_
+                or not all(np.all(np.isfinite(a)) for a in (t, d, v))
+                or any(isinstance(c, bool) or not isinstance(c, (int, np.integer)) or c < 0
+                       for c in cols) or self.column == self.d_column
+                or not all(np.isfinite(x) and x >= 0 for x in (self.slack, self.growth))):
+            raise ValueError("a sample ceiling needs finite theta_h, theta_d and values "
+                             "(and booleans, if any) of one length, two distinct columns "
+                             ">= 0, and a slack and a growth >= 0")
+        for name, value in (("theta_h", t), ("theta_d", d), ("log_ceiling", v),
+                            ("grows", grows),
+                            ("column", int(self.column)), ("d_column", int(self.d_column)),
+                            ("slack", float(self.slack)), ("growth", float(self.growth))):
+            object.__setattr__(self, name, value)
+        # theta_d steps over [0, pi / 2], the same for any samples (below 0 grazing() is
+        # 0: the first step's value is exact there)
+        n = _D_LEVELS
+        d0, h = 0.0, 0.5 * np.pi / n
+        levels = d0 + h * np.arange(n + 1)
+        # rows: steps; columns: theta_h ranks (the largest at or past each rank); the
+        # samples that do not grow in a row of their own (the same at every step)
+        ths, rank_t = np.unique(t, return_inverse=True)
+        terms = v[None, :] - self.growth * np.maximum(
+            0.0, grazing(d - self.slack)[None, :] - grazing(levels)[:, None])  # (n + 1, K)
+        table = np.full((n + 2, ths.size), -np.inf)
+        for k in range(n + 1):
+            np.maximum.at(table[k], rank_t[grows], terms[k, grows])
+        np.maximum.at(table[n + 1], rank_t[~grows], v[~grows])
+        table = np.maximum.accumulate(table[:, ::-1], axis=1)[:, ::-1]
+        object.__setattr__(self, "_table", (ths, d0, h, n, table))
+
+    @classmethod
+    def of_samples(cls, column: int, d_column: int, theta_h: ArrayLike, theta_d: ArrayLike,
+                   top: ArrayLike, slack: float, factor: float, growth: float,
+                   highlight: float = HIGHLIGHT_FRACTION) -> SampleCeiling:
+        """log(``factor`` x ``top``) at each sample; the samples at ``highlight`` times
+        the largest ``top`` or above grow (the highlight), the others keep their value
+        at every theta_d (a diffuse part does not grow toward grazing, and the noise
+        neither). Less the samples that never decide C: another has theta_h as large or
+        larger and a value as large or larger, and does not grow, or both grow and it
+        has theta_d as small or smaller (the same ceiling everywhere without them)."""
+        t = np.asarray(theta_h, dtype=float)
+        d = np.asarray(theta_d, dtype=float)
+        top_a = np.asarray(top, dtype=float)
+        v = np.log(factor * top_a)
+        grows = top_a >= highlight * top_a.max()
+        keep = np.ones(t.size, dtype=bool)
+        # in order of falling value, then theta_h, then rising theta_d: each sample is
+        # dominated only by one before it
+        order = np.lexsort((d, -t, -v))
+        kept: list[int] = []
+        for i in order:
+            if kept:
+                k = np.asarray(kept)
+                over = (t[k] >= t[i]) & (v[k] >= v[i]) & (
+                    ~grows[k] | (grows[i] & (d[k] <= d[i])))
+                if np.any(over):
+                    keep[i] = False
+                    continue
+            kept.append(int(i))
+        idx = np.sort(np.flatnonzero(keep))
+        return cls(int(column), int(d_column), t[idx], d[idx], v[idx], float(slack),
+                   float(growth), grows[idx])
+
+    def at2(self, theta_h: ArrayLike, theta_d: ArrayLike) -> Array:
+        """C at each (theta_h, theta_d)."""
+        t = np.atleast_1d(np.asarray(theta_h, dtype=float))
+        d = np.atleast_1d(np.asarray(theta_d, dtype=float))
+        ths, d0, h, n, table = self._table  # type: ignore[attr-defined]
+        a = np.minimum(np.searchsorted(ths, t - self.slack, side="left"), ths.size - 1)
+        with np.errstate(invalid="ignore"):
+            k = np.clip(np.floor((d - d0) / h), 0, n).astype(np.intp)
+        return np.maximum(table[k, a], table[n + 1, a])
+
+    def at_points(self, x: ArrayLike) -> Array:
+        """C at each row of ``x`` (the fit's coordinates)."""
+        xa = np.asarray(x, dtype=float)
+        return self.at2(xa[:, self.column], xa[:, self.d_column])
+
+    def describe(self) -> str:
+        return (f"over theta_h and theta_d ({self.theta_h.size} samples, growing toward "
+                f"grazing as (1 / cos theta_d)^{self.growth:.3g} at most)")
+
+    def of_pieces(self, space: PolynomialSpace) -> Callable[[Array, Array],
+                                                              tuple[Array, NDArray[np.bool_]]]:
+        """:func:`~ratfit.core.positivity.prove_below`'s bound on pieces of ``space``'s
+        window: C at the piece's largest theta_h and smallest theta_d (C falls with
+        theta_h and rises with theta_d), rounded outward, and whether C is that value all
+        over the piece."""
+        (a, b), (e, f) = ((float(v) for v in space.domain[c])
+                          for c in (self.column, self.d_column))
+        half_t, half_d = 0.5 * (b - a), 0.5 * (f - e)
+
+        def bound(lo: Array, hi: Array) -> tuple[Array, NDArray[np.bool_]]:
+            t_lo = a + (lo[:, self.column] + 1.0) * half_t
+            t_hi = a + (hi[:, self.column] + 1.0) * half_t
+            d_lo = e + (lo[:, self.d_column] + 1.0) * half_d
+            d_hi = e + (hi[:, self.d_column] + 1.0) * half_d
+            pad_t = 1e-12 * (1.0 + np.abs(t_hi))
+            pad_d = 1e-12 * (1.0 + np.abs(d_hi))
+            c = self.at2(t_hi + pad_t, d_lo - pad_d)
+            return c, self.at2(t_lo - pad_t, d_hi + pad_d) == c
+
+        return bound
+
+    def to_dict(self) -> dict[str, object]:
+        return {"coordinate": "theta_h, theta_d", "column": self.column,
+                "d_column": self.d_column, "theta_h": self.theta_h.tolist(),
+                "theta_d": self.theta_d.tolist(), "slack": self.slack,
+                "growth": self.growth, "log_ceiling": self.log_ceiling.tolist(),
+                "grows": self.grows.tolist()}  # type: ignore[union-attr]
+
+    @classmethod
+    def from_dict(cls, entry: object) -> SampleCeiling | None:
+        """The sample ceiling a proof entry states, or None (as
+        :meth:`StepCeiling.from_dict`)."""
+        env = entry.get("envelope") if isinstance(entry, dict) else None
+        if not isinstance(env, dict) or "theta_d" not in env:
+            return None
+        try:
+            col, dcol = env["column"], env["d_column"]
+            slack, growth = env["slack"], env["growth"]
+            if any(isinstance(v, bool) for v in (col, dcol, slack, growth)) or not all(
+                    isinstance(v, int) for v in (col, dcol)) or not all(
+                    isinstance(v, (int, float)) for v in (slack, growth)):
+                return None
+            grows = env["grows"]
+            if not isinstance(grows, list) or not all(isinstance(g, bool) for g in grows):
+                return None
+            return cls(col, dcol, np.asarray(env["theta_h"], dtype=float),
+                       np.asarray(env["theta_d"], dtype=float),
+                       np.asarray(env["log_ceiling"], dtype=float), float(slack),
+                       float(growth), np.asarray(grows, dtype=bool))
+        except (KeyError, TypeError, ValueError):
+            return None
+
+
+def grazing(theta_d: ArrayLike) -> Array:
+    """-log cos theta_d (0 at or below 0, rising to inf at grazing): a highlight's growth
+    toward grazing is linear in it (:class:`SampleCeiling`)."""
+    d = np.clip(np.asarray(theta_d, dtype=float), 0.0, 0.5 * np.pi)
+    with np.errstate(divide="ignore"):
+        return -np.log(np.cos(d))
+
+
+def theta_d_growth(theta_h: ArrayLike, theta_d: ArrayLike, top: ArrayLike, *,
+                   near: float = 0.01, apart: float = 0.1,
+                   highlight: float = HIGHLIGHT_FRACTION) -> float:
+    """The fastest growth toward grazing the samples' highlight shows: the largest
+    (log top_j - log top_i) / (g(theta_d_j) - g(theta_d_i)), g = :func:`grazing`, over
+    pairs of samples within ``near`` of each other in theta_h, at least ``apart`` in g,
+    and both at least ``highlight`` times their channel's largest ``top``, over every
+    channel of ``top`` (N, k): a highlight's growth is its geometry's, and Cornell's is
+    nearly white. (Values near the noise floor grow 10x between neighbours by noise.)
+    0 without such a pair. The five Cornell files give 2.0 (acryl_blue) to 6.1
+    (mystique), each from its mirror samples at 70 and 80 degrees or nearby ones."""
+    t = np.asarray(theta_h, dtype=float)
+    g = grazing(theta_d)
+    top_a = np.asarray(top, dtype=float).reshape(t.size, -1)
+    v = np.log(top_a)
+    bright = top_a >= highlight * top_a.max(axis=0)
+    order = np.argsort(t, kind="stable")
+    t, g, v, bright = t[order], g[order], v[order], bright[order]
+    best = 0.0
+    for i in range(t.size):
+        j = np.arange(i + 1, np.searchsorted(t, t[i] + near, side="right"))
+        if not j.size:
+            continue
+        dg = g[j] - g[i]
+        far = np.abs(dg) >= apart
+        if far.any():
+            rise = (v[j[far]] - v[i]) / dg[far, None]  # either order: a signed slope
+            both = bright[j[far]] & bright[i]
+            if both.any():
+                best = max(best, float(np.max(rise[both])))
+    return best
+
+
+#: a log fit's envelope: over theta_h alone, or over theta_h and theta_d
+Envelope = StepCeiling | SampleCeiling
+
+
+def envelope_from_dict(entry: object) -> Envelope | None:
+    """The envelope a proof entry states (either kind), or None."""
+    return SampleCeiling.from_dict(entry) or StepCeiling.from_dict(entry)
 
 
 # --------------------------------------------------------------------------- proof
@@ -450,7 +706,7 @@ class ValidityProof:
     # most exp(C); None: no upper bound (files written before it)
     ceiling: float | None = None
     # log values: a ceiling that falls with theta_h, proved with C as min(C(theta_h), C)
-    envelope: StepCeiling | None = None
+    envelope: Envelope | None = None
 
     @property
     def refuted(self) -> bool:
@@ -461,9 +717,7 @@ class ValidityProof:
         state = "proved" if self.proved else "NOT PROVED"
         if self.values == "log" and self.ceiling is not None:
             env = "" if self.envelope is None else (
-                f", and under the samples' envelope over theta_h "
-                f"({self.envelope.theta_h.size + 1} steps, down to "
-                f"{ceiling_bound(float(self.envelope.log_ceiling[-1])):.3g})")
+                f", and under the samples' envelope {self.envelope.describe()}")
             return (f"{state}: q > 0 {self.q.summary()}; the value exp(p/q) > 0 wherever "
                     f"q > 0, and at most {ceiling_bound(self.ceiling):.6g}{env}: "
                     f"C q - p >= 0 {self.p.summary()}; region: {self.region}")
@@ -573,7 +827,7 @@ _EXCLUDERS = {"RUSIN_TH_TD_PD": _rusin_excluder, "RUSIN_TH_TD_SYM": _sym_exclude
 def prove_validity(rf: RationalFunction, param: str, keep: ArrayLike | None = None,
                    max_boxes: int = 40_000, values: str = "linear",
                    ceiling: float | None = None,
-                   envelope: StepCeiling | None = None) -> ValidityProof:
+                   envelope: Envelope | None = None) -> ValidityProof:
     """Prove q > 0 and p >= 0 of ``rf`` (in its family form) on the evaluated region,
     examining at most ``max_boxes`` pieces for each of q and p. ``values="log"``: the
     fit's value is exp(p / q), positive wherever q > 0; with a ``ceiling`` C, C q - p > 0
@@ -649,15 +903,18 @@ def reprove_saved(saved: object) -> bool | None:
     proofs = meta.get("proof")
     entries = proofs if isinstance(proofs, list) else []
     stated = [entries[j] if j < len(entries) else None for j in range(len(channels))]
-    envelopes = [StepCeiling.from_dict(e) for e in stated]
+    envelopes = [envelope_from_dict(e) for e in stated]
     if any(isinstance(e, dict) and "envelope" in e and env is None
            for e, env in zip(stated, envelopes, strict=True)):
         return False  # an envelope the file states but no ceiling can be read from
     # an envelope's column is theta_h's among the coordinates the fit keeps
-    from ratfit.brdf.fitter import theta_h_column
+    from ratfit.brdf.fitter import theta_d_column, theta_h_column
 
-    col = theta_h_column(p.name, None if keep is None else [int(k) for k in keep])
-    if any(env is not None and env.column != col for env in envelopes):
+    used = None if keep is None else [int(k) for k in keep]
+    col = theta_h_column(p.name, used)
+    dcol = theta_d_column(p.name, used)
+    if any(env is not None and (env.column != col or (
+            isinstance(env, SampleCeiling) and env.d_column != dcol)) for env in envelopes):
         return False
     return all(prove_validity(ch.rational, p.name, keep=keep, values=values,
                               ceiling=proof_ceiling(stated[j]), envelope=envelopes[j]).proved

@@ -207,8 +207,8 @@ def prove_below(q_coef: ArrayLike, p_coef: ArrayLike, family: str,
     piece. A piece is proved when c q - p is; a corner where c q - p <= 0 is a
     counterexample only on a piece where C is c throughout (elsewhere the piece is
     halved again). ``q_coef`` and ``p_coef``: dense tensors of one shape, as
-    :func:`prove_positive` takes. A step bound of one coordinate (the samples' envelope
-    over theta_h) makes C q - p no polynomial, so no single Bernstein form proves it."""
+    :func:`prove_positive` takes. A step bound (the samples' envelope over theta_h and
+    theta_d) makes C q - p no polynomial, so no single Bernstein form proves it."""
     Q = np.asarray(q_coef, dtype=float)
     P = np.asarray(p_coef, dtype=float)
     if Q.shape != P.shape:

@@ -756,9 +756,11 @@ def scope_text(saved: SavedFit, reproved: bool | None = None) -> str:
             bounds = [ceiling_bound(c) for c in tops if c is not None]
             if len(bounds) == len(tops) and all(math.isfinite(v) for v in bounds):
                 # (reprove_saved refuses an envelope entry it cannot read)
-                under = (", and under the samples' envelope over theta_h (its steps in "
-                         "the fit file)" if all(isinstance(p.get("envelope"), dict)
-                                                for p in proofs) else "")
+                envs = [p.get("envelope") for p in proofs]
+                over = ("theta_h and theta_d" if all(isinstance(e, dict) and "theta_d" in e
+                                                     for e in envs) else "theta_h")
+                under = (f", and under the samples' envelope over {over} (as the fit file "
+                         "states it)" if all(isinstance(e, dict) for e in envs) else "")
                 return ("Verified at every sample of its data; q > 0 and exp(p/q) <= "
                         + " / ".join(f"{v:.4g}" for v in bounds)
                         + f" (per channel){under} proved where it is evaluated (Bernstein "
