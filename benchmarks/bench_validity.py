@@ -136,7 +136,7 @@ def main() -> None:
                "phi_d spread th_h=0", "proved", "q margin", "s eval/C/plugin"], rows,
               note="proved bound: the largest value the proof allows (fits of log values: "
                    "exp(p/q) <= twice the largest segment end); max / envelope: the "
-                   "largest value over the proved envelope at its theta_h (at most 1 "
+                   "largest value over the proved envelope at its coordinates (at most 1 "
                    "where proved); '-': none stated.")
     rep.write()
 

@@ -148,6 +148,8 @@ def test_the_envelope_over_theta_d_grows_toward_grazing_as_the_samples_do() -> N
         env.at2(t, d), _by_hand2(th, td, top, t, d, ENVELOPE_SLACK, g, step=h), rtol=1e-12)
     assert np.all(env.at2(t + 0.05, d) <= env.at2(t, d))
     assert np.all(env.at2(t, d + 0.05) >= env.at2(t, d))
+    # a non-finite coordinate allows nothing (C q - p is then -inf: a violation)
+    assert np.all(env.at2([np.nan, 0.1, np.inf], [0.5, np.nan, 0.5]) == -np.inf)
     # growth 0: the theta_h envelope
     flat = SampleCeiling.of_samples(0, 1, th, td, top, ENVELOPE_SLACK, LOG_CEILING_FACTOR, 0.0)
     np.testing.assert_allclose(flat.at2(t, d), steps.at(t), rtol=1e-12)

@@ -1113,10 +1113,20 @@ def log_ceilings(seg: Segments) -> Array:
 def theta_h_column(param: str, used_coords: Sequence[int] | None) -> int | None:
     """The column of theta_h among a fit's coordinates (``used_coords``: the frame's
     columns it keeps), or None where the frame has none."""
+    return _coordinate_column(param, used_coords, "theta_h")
+
+
+def theta_d_column(param: str, used_coords: Sequence[int] | None) -> int | None:
+    """The column of theta_d among a fit's coordinates, or None (as :func:`theta_h_column`)."""
+    return _coordinate_column(param, used_coords, "theta_d")
+
+
+def _coordinate_column(param: str, used_coords: Sequence[int] | None,
+                       name: str) -> int | None:
     p = find_parametrization(param)
-    if p is None or "theta_h" not in p.coords:
+    if p is None or name not in p.coords:
         return None
-    col = p.coords.index("theta_h")
+    col = p.coords.index(name)
     if used_coords is None:
         return col
     kept = list(used_coords)
@@ -1132,18 +1142,6 @@ def _envelope_block(envelopes: Sequence[Envelope] | None) -> dict[str, Any] | No
             "slack": ENVELOPE_SLACK, "proof_slack": ENVELOPE_PROOF_SLACK,
             **({} if growth is None else {"growth": growth}),
             "factor": LOG_CEILING_FACTOR, "proved": True}
-
-
-def theta_d_column(param: str, used_coords: Sequence[int] | None) -> int | None:
-    """The column of theta_d among a fit's coordinates, or None (as :func:`theta_h_column`)."""
-    p = find_parametrization(param)
-    if p is None or "theta_d" not in p.coords:
-        return None
-    col = p.coords.index("theta_d")
-    if used_coords is None:
-        return col
-    kept = list(used_coords)
-    return kept.index(col) if col in kept else None
 
 
 def nonnegative_segments(seg: Segments) -> Segments:

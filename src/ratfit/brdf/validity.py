@@ -466,17 +466,17 @@ class SampleCeiling:
     highlight's samples grow (``grows``: those at :data:`HIGHLIGHT_FRACTION` of the
     largest or above); the others keep their value at every theta_d, as the diffuse
     part does (with every sample growing, acryl_blue B's diffuse fit / data fell from
-    0.96 to 0.58). Over theta_h alone the ceiling
-    at the mirror direction is the file's grazing peak at every incidence (cayman: 737
-    1/sr at 80 degrees), and fits rose 10-1000x above their 10-70 degree mirror samples
-    between them. ``growth`` 0 is the theta_h envelope.
+    0.96 to 0.58). Over theta_h alone the ceiling at the mirror direction is the file's
+    grazing peak at every incidence (cayman: 737 1/sr at 80 degrees), and fits rose
+    10-1000x above their 10-70 degree mirror samples between them. ``growth`` 0 is the
+    theta_h envelope.
 
     C falls with t and rises with d, so its smallest value on a box is at the box's
     (largest t, smallest d) corner, which is what the proof takes. It is computed as
-    defined at theta_d steps (:data:`ENVELOPE_D_STEP` apart at most) and taken at the
-    step at or below d: the ceiling is that staircase, a little under the formula.
-    ``column``, ``d_column``: theta_h's and theta_d's columns among the fit's
-    coordinates."""
+    defined at theta_d steps :data:`ENVELOPE_D_STEP` apart and taken at the step at or
+    below d: the ceiling is that staircase, a little under the formula; -inf (no value
+    allowed) at a non-finite coordinate. ``column``, ``d_column``: theta_h's and
+    theta_d's columns among the fit's coordinates."""
 
     column: int
     d_column: int
@@ -511,9 +511,8 @@ class SampleCeiling:
             object.__setattr__(self, name, value)
         # theta_d steps over [0, pi / 2], the same for any samples (below 0 grazing() is
         # 0: the first step's value is exact there)
+        levels = ENVELOPE_D_STEP * np.arange(_D_LEVELS + 1)
         n = _D_LEVELS
-        d0, h = 0.0, 0.5 * np.pi / n
-        levels = d0 + h * np.arange(n + 1)
         # rows: steps; columns: theta_h ranks (the largest at or past each rank); the
         # samples that do not grow in a row of their own (the same at every step)
         ths, rank_t = np.unique(t, return_inverse=True)
@@ -524,7 +523,7 @@ class SampleCeiling:
             np.maximum.at(table[k], rank_t[grows], terms[k, grows])
         np.maximum.at(table[n + 1], rank_t[~grows], v[~grows])
         table = np.maximum.accumulate(table[:, ::-1], axis=1)[:, ::-1]
-        object.__setattr__(self, "_table", (ths, d0, h, n, table))
+        object.__setattr__(self, "_table", (ths, table))
 
     @classmethod
     def of_samples(cls, column: int, d_column: int, theta_h: ArrayLike, theta_d: ArrayLike,
@@ -563,11 +562,14 @@ class SampleCeiling:
         """C at each (theta_h, theta_d)."""
         t = np.atleast_1d(np.asarray(theta_h, dtype=float))
         d = np.atleast_1d(np.asarray(theta_d, dtype=float))
-        ths, d0, h, n, table = self._table  # type: ignore[attr-defined]
-        a = np.minimum(np.searchsorted(ths, t - self.slack, side="left"), ths.size - 1)
-        with np.errstate(invalid="ignore"):
-            k = np.clip(np.floor((d - d0) / h), 0, n).astype(np.intp)
-        return np.maximum(table[k, a], table[n + 1, a])
+        t, d = np.broadcast_arrays(t, d)
+        ths, table = self._table  # type: ignore[attr-defined]
+        ok = np.isfinite(t) & np.isfinite(d)
+        a = np.minimum(np.searchsorted(ths, np.where(ok, t, 0.0) - self.slack, side="left"),
+                       ths.size - 1)
+        k = np.clip(np.floor(np.where(ok, d, 0.0) / ENVELOPE_D_STEP), 0,
+                    _D_LEVELS).astype(np.intp)
+        return np.where(ok, np.maximum(table[k, a], table[_D_LEVELS + 1, a]), -np.inf)
 
     def at_points(self, x: ArrayLike) -> Array:
         """C at each row of ``x`` (the fit's coordinates)."""
