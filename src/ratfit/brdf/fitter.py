@@ -1296,8 +1296,10 @@ class BRDFFitter(RationalFitter):
             # segments stay for the last check of exp(p / q) itself
             self._value_segments = segments
             self._ceilings = log_ceilings(segments)
-            self._envelopes = self._theta_h_envelopes(segments, ENVELOPE_SLACK)
-            self._step_ceilings = self._theta_h_envelopes(segments, ENVELOPE_PROOF_SLACK)
+            growth = self._theta_d_growth(segments)  # once for the rows and the proof
+            self._envelopes = self._theta_h_envelopes(segments, ENVELOPE_SLACK, growth)
+            self._step_ceilings = self._theta_h_envelopes(segments, ENVELOPE_PROOF_SLACK,
+                                                          growth)
             segments = log_segments(segments)
         if not self._full_search:
             self._points: dict[int, list[Array]] = {}
@@ -1449,11 +1451,25 @@ class BRDFFitter(RationalFitter):
         steps = self.__dict__.get("_step_ceilings")
         return None if steps is None else steps[j]
 
-    def _theta_h_envelopes(self, segments: Segments, slack: float
-                           ) -> list[Envelope] | None:
+    def _theta_d_growth(self, segments: Segments) -> float | None:
+        """The growth toward grazing of ``segments``' highlight over all their channels
+        (:func:`~ratfit.brdf.validity.theta_d_growth`; the highlight's geometry; a
+        channel fitted again alone, as one widened alone, has its own samples' growth),
+        or None where the fit's coordinates lack theta_h or theta_d."""
+        from ratfit.brdf.validity import theta_d_growth
+
+        col = theta_h_column(self.parametrization, self.used_coords)
+        dcol = theta_d_column(self.parametrization, self.used_coords)
+        if col is None or dcol is None:
+            return None
+        return theta_d_growth(segments.x[:, col], segments.x[:, dcol], segments.hi)
+
+    def _theta_h_envelopes(self, segments: Segments, slack: float,
+                           growth: float | None = None) -> list[Envelope] | None:
         """Each channel's envelope of the value ``segments`` with ``slack``
         (:attr:`envelope`, a frame with theta_h): over theta_h and theta_d where the
-        frame has both (:class:`~ratfit.brdf.validity.SampleCeiling`), else over theta_h
+        frame has both (:class:`~ratfit.brdf.validity.SampleCeiling`, with ``growth``,
+        by default that of all of ``segments``' channels), else over theta_h
         (:class:`~ratfit.brdf.validity.StepCeiling`); None without :attr:`envelope`."""
         from ratfit.brdf.validity import SampleCeiling, StepCeiling, theta_d_growth
 
@@ -1462,11 +1478,10 @@ class BRDFFitter(RationalFitter):
             return None
         dcol = theta_d_column(self.parametrization, self.used_coords)
         if dcol is not None:
-            # one growth for every channel: the highlight's geometry
             th, td = segments.x[:, col], segments.x[:, dcol]
-            growth = theta_d_growth(th, td, segments.hi)
+            g = theta_d_growth(th, td, segments.hi) if growth is None else growth
             return [SampleCeiling.of_samples(col, dcol, th, td, segments.hi[:, j], slack,
-                                             LOG_CEILING_FACTOR, growth)
+                                             LOG_CEILING_FACTOR, g)
                     for j in range(segments.n_channels)]
         return [StepCeiling.of_samples(col, segments.x[:, col], segments.hi[:, j], slack,
                                        LOG_CEILING_FACTOR)
