@@ -136,9 +136,10 @@ def _split_channels(values: tuple[str, ...]) -> list[str]:
 @click.option("--envelope/--no-envelope", "envelope", default=None,
               help="Fits of log values (p / q fits have no ceiling): keep p / q under "
                    "twice the largest upper end among the samples as far from the mirror "
-                   "direction (theta_h, less 0.05 rad at the search's points) or farther "
-                   "and at the same incidence (theta_d, plus 0.05 rad) or nearer the "
-                   "normal, and prove it (less 0.1 rad) on the whole evaluated region, not only "
+                   "direction (theta_h, less 0.05 rad at the search's points) or farther, "
+                   "at their incidence or nearer grazing (theta_d), and nearer the normal "
+                   "only as much less as the highlight's samples grow toward grazing; "
+                   "prove it (less 0.1 rad) on the whole evaluated region, not only "
                    "twice the channel's largest. Default: on for scattered measurements, "
                    "whose unsampled pairs a fit may otherwise fill with highlights; off "
                    "for a full MERL table.")
