@@ -26,10 +26,16 @@ __all__ = ["AnalyticMaterial", "DataMaterial", "FitMaterial", "ModelMaterial", "
 Array = NDArray[np.float64]
 
 
-def unit_rows(d: ArrayLike) -> Array:
-    """(N, 3) float64 unit vectors with z >= 0 (rounding from float32 renderers removed)."""
+def above_rows(d: ArrayLike) -> Array:
+    """(N, 3) float64 vectors with z >= 0 (rounding from float32 renderers removed)."""
     a = np.atleast_2d(np.asarray(d, dtype=float)).copy()
     a[:, 2] = np.maximum(a[:, 2], 0.0)
+    return a
+
+
+def unit_rows(d: ArrayLike) -> Array:
+    """(N, 3) float64 unit vectors with z >= 0 (rounding from float32 renderers removed)."""
+    a = above_rows(d)
     n = np.linalg.norm(a, axis=1)
     return a / np.where(n > 0, n, 1.0)[:, None]
 
@@ -75,8 +81,10 @@ class FitMaterial:
 
     def coords(self, L: ArrayLike, V: ArrayLike) -> tuple[Array, NDArray[np.bool_]]:
         """The fit's coordinates of (L, V): :meth:`ratfit.brdf.fitter.BRDFFit.coords`,
-        the definition every evaluator shares. Also returns which rows needed a clip."""
-        return self.fit.coords(unit_rows(L), unit_rows(V))
+        the definition every evaluator shares (it normalises the directions: once, so
+        the values are ``brdf eval``'s to the last bit). Also returns which rows needed a
+        clip."""
+        return self.fit.coords(above_rows(L), above_rows(V))
 
     def raw(self, L: ArrayLike, V: ArrayLike) -> Array:
         """The fit's own values (N, 3), negative or non-finite ones included."""
