@@ -22,6 +22,7 @@ from ratfit.brdf.fitter import (
     ENVELOPE_PROOF_SLACK,
     ENVELOPE_SLACK,
     LOG_CEILING_FACTOR,
+    LOG_FLOOR_FACTOR,
     BRDFFitter,
     brdf_segments,
     fit_brdf,
@@ -32,7 +33,9 @@ from ratfit.brdf.io import read_brdf, samples_dataset
 from ratfit.brdf.parametrizations import get_parametrization
 from ratfit.brdf.validity import (
     ENVELOPE_D_STEP,
+    FLOOR_LOG_MIN,
     SampleCeiling,
+    SampleFloor,
     StepCeiling,
     envelope_from_dict,
     grazing,
@@ -200,6 +203,95 @@ def test_samples_that_never_decide_the_envelope_are_dropped_without_changing_it(
         assert envelope_from_dict({"envelope": env.to_dict() | bad}) is None
 
 
+def _floor_by_hand(theta_h, theta_d, lo, hi, t, d, factor=2.0, highlight=0.01):
+    """The floor one point at a time: the largest log(lo_i / factor), lowered to
+    log(hi_k / factor) of every sample k with theta_h_k <= theta_h_i and theta_d_k >=
+    theta_d_i, over the highlight samples i (hi_i >= highlight x the largest hi, lo_i > 0)
+    with theta_h_i >= t and theta_d_i <= d, d taken at the theta_d step at or below it;
+    FLOOR_LOG_MIN where there is none."""
+    th, td, lo, hi = (np.asarray(a, float) for a in (theta_h, theta_d, lo, hi))
+    bright = (hi >= highlight * hi.max()) & (lo > 0)
+    v = np.full(th.size, -np.inf)
+    for i in np.flatnonzero(bright):
+        region = (th <= th[i]) & (td >= td[i])
+        v[i] = min(np.log(lo[i] / factor), np.log(hi[region] / factor).min())
+    out = []
+    for u, w in zip(np.atleast_1d(t), np.atleast_1d(d), strict=True):
+        w = ENVELOPE_D_STEP * np.clip(np.floor(w / ENVELOPE_D_STEP), 0,
+                                      round(np.pi / 2 / ENVELOPE_D_STEP)) if w >= 0 else -1.0
+        near = bright & (th >= u) & (td <= w)
+        out.append(max(FLOOR_LOG_MIN, v[near].max()) if near.any() else FLOOR_LOG_MIN)
+    return np.array(out)
+
+
+def test_the_floor_is_the_highlight_samples_lower_ends_nearer_mirror_and_grazing() -> None:
+    rng = np.random.default_rng(4)
+    th, td = rng.uniform(0, 1.4, 400), rng.uniform(0.1, 1.4, 400)
+    y = np.exp(rng.normal(0.0, 1.0, 400)) * np.exp(-4 * th + 2 * td)
+    lo, hi = 0.6 * y, 1.4 * y
+    lo[:5] = 0.0  # no floor from a segment that reaches 0
+    floor = SampleFloor.of_samples(0, 1, th, td, lo, hi, LOG_FLOOR_FACTOR)
+    # dominated samples dropped: fewer terms, the same floor
+    assert 0 < floor.theta_h.size < 60
+    t, d = rng.uniform(-0.2, 1.6, 3000), rng.uniform(-0.2, 1.6, 3000)
+    np.testing.assert_allclose(floor.at2(t, d), _floor_by_hand(th, td, lo, hi, t, d),
+                               rtol=1e-12)
+    # never above a sample's own upper end / factor, so the segments stay feasible
+    assert np.all(floor.at2(th, td) <= np.log(hi / LOG_FLOOR_FACTOR) + 1e-12)
+    # a dim sample (under 1 % of the largest) sets no floor
+    dim = SampleFloor.of_samples(0, 1, [0.5, 0.1], [0.5, 1.0], [0.001, 50.0], [0.002, 60.0],
+                                 2.0)
+    assert dim.theta_h.tolist() == [0.1]
+    # a non-finite coordinate allows no value: a violation wherever it is checked
+    assert floor.at2([np.nan, 0.1], [0.5, np.inf])[0] == np.inf
+    # F's largest value on a piece is at its (smallest theta_h, largest theta_d) corner
+    from ratfit.core.bases import PolynomialSpace
+
+    space = PolynomialSpace("legendre", [[0.0, 1.4], [0.1, 1.4]])
+    bound = floor.of_pieces(space)
+    lo_w = rng.uniform(-1, 1, (300, 2))
+    hi_w = np.minimum(lo_w + rng.uniform(0, 0.5, (300, 2)), 1.0)
+    top, exact = bound(lo_w, hi_w)
+    for k in range(300):
+        x = space.from_window(rng.uniform(lo_w[k], hi_w[k], (50, 2)))
+        inside = floor.at2(x[:, 0], x[:, 1])
+        assert np.all(inside <= top[k])
+        if exact[k]:
+            assert np.all(inside == top[k])
+    assert exact.any() and not exact.all()
+    # stored with its ceiling; a floor the file states but that cannot be read: nothing
+    env = SampleCeiling.of_samples(0, 1, th, td, hi, 0.1, 2.0, 3.0, floor=floor)
+    back = envelope_from_dict({"envelope": env.to_dict()})
+    assert isinstance(back, SampleCeiling) and back.floor is not None
+    np.testing.assert_array_equal(back.floor.at2(t, d), floor.at2(t, d))
+    assert "above the floor of" in back.describe()
+    for bad in ({"column": 1}, {"theta_d": [0.1]}, {"log_floor": None}, {"d_column": True}):
+        stated = env.to_dict()
+        stated["floor"] = stated["floor"] | bad
+        assert envelope_from_dict({"envelope": stated}) is None
+    with pytest.raises(ValueError):
+        SampleCeiling.of_samples(0, 2, th, td, hi, 0.1, 2.0, 3.0, floor=floor)
+
+
+def test_the_rows_hold_the_floor_where_it_is_set() -> None:
+    ds = _material(300)
+    fitter, _seg, _meta = fit_brdf(ds, values="log", **WIDTHS)
+    assert fitter.success_
+    floor = fitter._envelopes[0].floor
+    assert floor is not None and floor.theta_h.size > 0
+    pts = ds.x[:50]
+    rows = fitter._row_floor(0, pts)
+    f = floor.at_points(pts)
+    set_ = f > FLOOR_LOG_MIN
+    assert set_.any() and not set_.all()
+    np.testing.assert_allclose(rows[set_], f[set_] + CEILING_ROW_MARGIN)
+    assert np.all(rows[~set_] == -np.inf)
+    # the polish's rows: one p - F q row for each point with a floor
+    rf = fitter.results_[0].rational
+    G, _inv = _positivity_rows(rf, pts, numerator=False, ceiling=np.zeros(50), floor=rows)
+    assert G.shape[0] == 50 + 50 + int(set_.sum())
+
+
 def test_the_polish_rows_take_one_ceiling_per_point() -> None:
     rf = _spike(1000.0)
     pts = np.array([[0.01, 0.6, 1.0], [1.0, 1.0, 2.0], [0.5, 0.8, 0.5]])
@@ -249,7 +341,8 @@ def test_scattered_log_fits_keep_an_envelope_and_say_so() -> None:
     assert meta["envelope"] == {"coordinate": "theta_h, theta_d", "slack": ENVELOPE_SLACK,
                                 "proof_slack": ENVELOPE_PROOF_SLACK,
                                 "growth": fitter._envelopes[0].growth,
-                                "factor": LOG_CEILING_FACTOR, "proved": True}
+                                "factor": LOG_CEILING_FACTOR,
+                                "floor_factor": LOG_FLOOR_FACTOR, "proved": True}
     lin = fit_brdf(ds, values="linear", **WIDTHS)
     assert lin[0].envelope is False and lin[2]["envelope"] is None
     off = fit_brdf(ds, values="log", envelope=False, **WIDTHS)
@@ -333,8 +426,18 @@ def test_log_fits_prove_their_envelope_and_a_file_is_proved_again(tmp_path) -> N
     saved = load_fit(path)
     assert reprove_saved(saved) is True
     assert "under the samples' envelope over theta_h and theta_d" in scope_text(saved, True)
-    # a lower envelope than the fit's values is not proved from the same numbers
+    # the floor is proved too, and a floor above the fit's values is not
+    assert proof.floor is not None and proof.floor.proved
+    assert "p - F q > 0 (F: the floor) proved" in proof.summary()
+    assert entry["floor_margin"] == proof.floor.margin > 0
+    rf = fitter.results_[0].rational
     stated = saved.extra["brdf"]["proof"][0]["envelope"]
+    kept = dict(stated["floor"])
+    stated["floor"]["log_floor"] = [float(np.max(rf(ds.x))) + 1.0] * len(kept["log_floor"])
+    assert reprove_saved(saved) is False
+    stated["floor"] = kept
+    assert reprove_saved(saved) is True
+    # a lower envelope than the fit's values is not proved from the same numbers
     stated["log_ceiling"] = [min(stated["log_ceiling"]) - 8.0] * len(stated["log_ceiling"])
     assert reprove_saved(saved) is False
     # an envelope the file states but that cannot be read proves nothing, nor one
@@ -393,3 +496,20 @@ def test_mystique_stays_under_its_samples_off_the_highlight(shared_data) -> None
         steps = envelope_from_dict(report.meta["proof"][j])
         assert steps is not None
         assert np.all(v[:, j] <= np.exp(steps.at_points(x)) * (1 + 1e-9)), j
+    # along the mirror direction no channel dips between the incidence angles measured
+    # there: B fell to 0.009 1/sr at 75 degrees between 11.9 (69 degrees) and 591 (80)
+    # under the ceiling alone; above the floor it stays over half the 69-degree sample's
+    # lower end
+    td = np.radians(np.arange(69.5, 80.0, 0.25))
+    mirror = np.stack([np.zeros_like(td), td, np.zeros_like(td)], axis=1)
+    Lm, Vm = get_parametrization("RUSIN_TH_TD_PD").to_dirs(mirror)
+    vm = fit.eval_dirs(Lm, Vm)
+    at69 = np.flatnonzero((ds.x[:, 0] < 0.02) & (np.abs(ds.x[:, 1] - 1.212) < 0.01))
+    assert at69.size == 1
+    for j in range(3):
+        floor = envelope_from_dict(report.meta["proof"][j]).floor
+        assert floor is not None
+        lo69 = ds.y[at69[0], j] * (1 - widths["channel_dt"][j])
+        assert np.all(np.exp(floor.at2(0.0, td)) >= 0.5 * lo69 * (1 - 1e-9)), j
+        assert np.all(vm[:, j] >= 0.5 * lo69 * (1 - 1e-9)), j
+    assert vm[:, 2].min() > 0.5  # B: 0.009 at 75 degrees before

@@ -177,6 +177,10 @@ LOG_LOW = 1e-3
 #: G), 7e135 (B) and overflowed to inf (acryl_blue) between their samples, at a data peak
 #: of 30-740 1/sr.
 LOG_CEILING_FACTOR = 2.0
+#: A log fit under an envelope over theta_h and theta_d is held above its highlight's
+#: floor too (:class:`~ratfit.brdf.validity.SampleFloor`): the lower end of each of those
+#: samples divided by this, nearer the mirror direction and nearer grazing than it.
+LOG_FLOOR_FACTOR = 2.0
 # The search's and the polish's rows keep p / q this far (in log: 5 %) below the ceiling
 # at their points, the check and the proof hold it to the ceiling itself: a least-squares
 # fit that wants to rise past the box's samples (a lobe's grazing tail) otherwise touches
@@ -1138,10 +1142,12 @@ def _envelope_block(envelopes: Sequence[Envelope] | None) -> dict[str, Any] | No
     if not envelopes:
         return None
     growth = getattr(envelopes[0], "growth", None)
+    floored = getattr(envelopes[0], "floor", None) is not None
     return {"coordinate": "theta_h" if growth is None else "theta_h, theta_d",
             "slack": ENVELOPE_SLACK, "proof_slack": ENVELOPE_PROOF_SLACK,
             **({} if growth is None else {"growth": growth}),
-            "factor": LOG_CEILING_FACTOR, "proved": True}
+            "factor": LOG_CEILING_FACTOR,
+            **({"floor_factor": LOG_FLOOR_FACTOR} if floored else {}), "proved": True}
 
 
 def nonnegative_segments(seg: Segments) -> Segments:
@@ -1362,13 +1368,15 @@ class BRDFFitter(RationalFitter):
         fold = np.random.default_rng(0).permutation(seg.n_points) % GROWTH_FOLDS
         pts = self._validity_points(j, rf.space.domain)
         ceiling = self._row_ceiling(j, pts)
+        floor = self._row_floor(j, pts)
         work = WorkBudget(self._polish_share())
 
         def step(fit: RationalFunction, target: Segments, w: Array) -> RationalFunction | None:
             if work.exhausted:
                 return None
             return polish_fit(fit, target, 0, weights=w, positive_at=pts, solver=self.solver,
-                              numerator=False, ceiling=ceiling, method="qp", work=work)
+                              numerator=False, ceiling=ceiling, floor=floor, method="qp",
+                              work=work)
 
         sizes = [(rf.n, rf.m)] + [(int(np.ceil(g * rf.n)), int(np.ceil(g * rf.m)))
                                   for g in GROWTH_FACTORS]
@@ -1446,6 +1454,19 @@ class BRDFFitter(RationalFitter):
         local = env[j].at_points(np.asarray(points, dtype=float))
         return np.minimum(local, top) - CEILING_ROW_MARGIN
 
+    def _row_floor(self, j: int, points: Array | None) -> Array | None:
+        """The floor the search's and the polish's rows keep at ``points``:
+        :data:`CEILING_ROW_MARGIN` over channel ``j``'s envelope's floor, -inf where it
+        sets none; None without a floor."""
+        from ratfit.brdf.validity import FLOOR_LOG_MIN
+
+        env = self.__dict__.get("_envelopes")
+        floor = None if env is None else getattr(env[j], "floor", None)
+        if points is None or floor is None:
+            return None
+        f = floor.at_points(np.asarray(points, dtype=float))
+        return np.where(np.isfinite(f) & (f > FLOOR_LOG_MIN), f + CEILING_ROW_MARGIN, -np.inf)
+
     def _proof_envelope(self, j: int) -> Envelope | None:
         """The envelope channel ``j``'s proof holds (:data:`ENVELOPE_PROOF_SLACK`), or None."""
         steps = self.__dict__.get("_step_ceilings")
@@ -1471,7 +1492,7 @@ class BRDFFitter(RationalFitter):
         frame has both (:class:`~ratfit.brdf.validity.SampleCeiling`, with ``growth``,
         by default that of all of ``segments``' channels), else over theta_h
         (:class:`~ratfit.brdf.validity.StepCeiling`); None without :attr:`envelope`."""
-        from ratfit.brdf.validity import SampleCeiling, StepCeiling, theta_d_growth
+        from ratfit.brdf.validity import SampleCeiling, SampleFloor, StepCeiling, theta_d_growth
 
         col = theta_h_column(self.parametrization, self.used_coords)
         if not self.envelope or col is None:
@@ -1480,9 +1501,11 @@ class BRDFFitter(RationalFitter):
         if dcol is not None:
             th, td = segments.x[:, col], segments.x[:, dcol]
             g = theta_d_growth(th, td, segments.hi) if growth is None else growth
-            return [SampleCeiling.of_samples(col, dcol, th, td, segments.hi[:, j], slack,
-                                             LOG_CEILING_FACTOR, g)
-                    for j in range(segments.n_channels)]
+            return [SampleCeiling.of_samples(
+                col, dcol, th, td, segments.hi[:, j], slack, LOG_CEILING_FACTOR, g,
+                floor=SampleFloor.of_samples(col, dcol, th, td, segments.lo[:, j],
+                                             segments.hi[:, j], LOG_FLOOR_FACTOR))
+                for j in range(segments.n_channels)]
         return [StepCeiling.of_samples(col, segments.x[:, col], segments.hi[:, j], slack,
                                        LOG_CEILING_FACTOR)
                 for j in range(segments.n_channels)]
@@ -1677,7 +1700,8 @@ class BRDFFitter(RationalFitter):
                                                    if weights is None else weights),
                               positive_at=pts, solver=self.solver,
                               numerator=self.value_form == "linear",
-                              ceiling=self._row_ceiling(j, pts), deadline=deadline,
+                              ceiling=self._row_ceiling(j, pts),
+                              floor=self._row_floor(j, pts), deadline=deadline,
                               method=method,
                               repair=repair, work=work)
             if cand is None:
@@ -1814,7 +1838,8 @@ class BRDFFitter(RationalFitter):
             return system
         return _valid_rows(system, space.to_window(grid),
                            numerator=self.physical and self.value_form == "linear",
-                           ceiling=self._row_ceiling(j, grid) if self.physical else None)
+                           ceiling=self._row_ceiling(j, grid) if self.physical else None,
+                           floor=self._row_floor(j, grid) if self.physical else None)
 
     def _valid_grid_for(self, domain: ArrayLike) -> Array | None:
         dom = np.asarray(domain, dtype=float)
@@ -1952,11 +1977,13 @@ class _BRDFSystems:
 
 
 def _valid_rows(base: ArnoldiSystem, t_grid: Array, numerator: bool = True,
-                ceiling: float | Array | None = None) -> AppendedRows:
+                ceiling: float | Array | None = None,
+                floor: Array | None = None) -> AppendedRows:
     """``base`` plus, per valid configuration g, the row q(g) / |psi(g)| >= delta,
-    (``numerator``) the row p(g) / |phi(g)| >= delta and (``ceiling`` C, a fit of log
+    (``numerator``) the row p(g) / |phi(g)| >= delta, (``ceiling`` C, a fit of log
     values; one number, or one per point) the row (C q(g) - p(g)) / |(-phi(g), C psi(g))|
-    >= delta: p / q <= C.
+    >= delta: p / q <= C, and (``floor`` F, one per point, -inf where there is none) the
+    row (p(g) - F q(g)) / |(phi(g), -F psi(g))| >= delta: p / q >= F.
 
     The grid counts as points, so :func:`~ratfit.core.qp.solve_fixed` always works
     on an active set that starts from the data's rows and adds grid rows where they
@@ -1968,18 +1995,27 @@ def _valid_rows(base: ArnoldiSystem, t_grid: Array, numerator: bool = True,
             return d / np.linalg.norm(d, axis=1)[:, None]
         return LazyRows(make, len(t_grid))
 
+    f = None if floor is None else np.asarray(floor, dtype=float).ravel()
+    floored = np.zeros(len(t_grid), dtype=bool) if f is None else np.isfinite(f)
+
     def bound() -> Array:
-        assert ceiling is not None
-        c = np.reshape(np.asarray(ceiling, dtype=float), (-1, 1))
-        d = np.hstack([-base.p_basis.design(t_grid, base.n, window=True),
-                       c * base.q_basis.design(t_grid, base.m, window=True)])
+        P = base.p_basis.design(t_grid, base.n, window=True)
+        Q = base.q_basis.design(t_grid, base.m, window=True)
+        parts = []
+        if ceiling is not None:
+            c = np.reshape(np.asarray(ceiling, dtype=float), (-1, 1))
+            parts.append(np.hstack([-P, c * Q]))
+        if f is not None:
+            parts.append(np.hstack([P[floored], -f[floored, None] * Q[floored]]))
+        d = np.vstack(parts)
         return d / np.linalg.norm(d, axis=1)[:, None]
 
+    count = (0 if ceiling is None else len(t_grid)) + int(floored.sum())
     # built when a candidate reaches the grid (an infeasible split never does)
     return AppendedRows(
         base, base.n, base.m, psi=unit(base.q_basis, base.m),
         phi=unit(base.p_basis, base.n) if numerator else None,
-        chi=None if ceiling is None else LazyRows(bound, len(t_grid)),
+        chi=None if count == 0 else LazyRows(bound, count),
         start_active=False, extra_points=len(t_grid))
 
 

@@ -95,9 +95,9 @@ BRDF_OPTIONS = extend_spec(
            "else linear.", VALUES, cli=False),
     Option("envelope", "bool", None,
            "Fits of log values: the search's and the polish's validity rows keep p / q "
-           "under the samples' envelope over theta_h and theta_d "
-           "(ratfit.brdf.validity.SampleCeiling; over theta_h alone in a frame without "
-           "theta_d), "
+           "under the samples' envelope over theta_h and theta_d and above their "
+           "highlight's floor (ratfit.brdf.validity.SampleCeiling, SampleFloor; under an "
+           "envelope over theta_h alone in a frame without theta_d), "
            "not only under the channel's ceiling, and the validity proof proves it; "
            "None: for scattered measurements "
            "(ratfit.brdf.fitter.fit_brdf decides).", cli=False),

@@ -40,6 +40,7 @@ from ratfit.io.fitfile import ceiling_bound, proof_ceiling
 __all__ = [
     "Envelope",
     "SampleCeiling",
+    "SampleFloor",
     "StepCeiling",
     "ValidityCheck",
     "ValidityProof",
@@ -281,9 +282,17 @@ def _second(rf: RationalFunction, values: str, ceiling: float | None,
     if envelope is None:
         return lambda x: c_top * rf.denominator(x) - rf.numerator(x)
 
+    floor = getattr(envelope, "floor", None)
+
     def below(x: Array) -> Array:
         c = np.minimum(envelope.at_points(x), c_top)
-        return c * rf.denominator(x) - rf.numerator(x)
+        q, p = rf.denominator(x), rf.numerator(x)
+        out = c * q - p
+        if floor is not None:  # and above the floor: both >= 0, so the smaller is
+            f = np.maximum(floor.at_points(x), FLOOR_LOG_MIN)
+            with np.errstate(invalid="ignore"):
+                out = np.minimum(out, np.where(np.isfinite(f), p - f * q, -np.inf))
+        return out
 
     return below
 
@@ -487,8 +496,13 @@ class SampleCeiling:
     growth: float = 0.0
     # the samples whose term falls toward the normal (the highlight's); None: every one
     grows: NDArray[np.bool_] | None = None
+    # the value held above the highlight's samples' floor as well (None: no floor)
+    floor: SampleFloor | None = None
 
     def __post_init__(self) -> None:
+        if self.floor is not None and (not isinstance(self.floor, SampleFloor) or (
+                self.floor.column, self.floor.d_column) != (self.column, self.d_column)):
+            raise ValueError("a sample ceiling's floor must be a SampleFloor over its columns")
         t = np.asarray(self.theta_h, dtype=float)
         d = np.asarray(self.theta_d, dtype=float)
         v = np.asarray(self.log_ceiling, dtype=float)
@@ -528,7 +542,8 @@ class SampleCeiling:
     @classmethod
     def of_samples(cls, column: int, d_column: int, theta_h: ArrayLike, theta_d: ArrayLike,
                    top: ArrayLike, slack: float, factor: float, growth: float,
-                   highlight: float = HIGHLIGHT_FRACTION) -> SampleCeiling:
+                   highlight: float = HIGHLIGHT_FRACTION,
+                   floor: SampleFloor | None = None) -> SampleCeiling:
         """log(``factor`` x ``top``) at each sample; the samples at ``highlight`` times
         the largest ``top`` or above grow (the highlight), the others keep their value
         at every theta_d (a diffuse part does not grow toward grazing, and the noise
@@ -556,7 +571,7 @@ class SampleCeiling:
             kept.append(int(i))
         idx = np.sort(np.flatnonzero(keep))
         return cls(int(column), int(d_column), t[idx], d[idx], v[idx], float(slack),
-                   float(growth), grows[idx])
+                   float(growth), grows[idx], floor)
 
     def at2(self, theta_h: ArrayLike, theta_d: ArrayLike) -> Array:
         """C at each (theta_h, theta_d)."""
@@ -577,8 +592,13 @@ class SampleCeiling:
         return self.at2(xa[:, self.column], xa[:, self.d_column])
 
     def describe(self) -> str:
-        return (f"over theta_h and theta_d ({self.theta_h.size} samples, growing toward "
-                f"grazing as (1 / cos theta_d)^{self.growth:.3g} at most)")
+        below = (f"over theta_h and theta_d ({self.theta_h.size} samples, growing toward "
+                 f"grazing as (1 / cos theta_d)^{self.growth:.3g} at most)")
+        return below if self.floor is None else f"{below}, and {self.floor.describe()}"
+
+    def floor_at_points(self, x: ArrayLike) -> Array | None:
+        """The floor at each row of ``x``, or None without one."""
+        return None if self.floor is None else self.floor.at_points(x)
 
     def of_pieces(self, space: PolynomialSpace) -> Callable[[Array, Array],
                                                               tuple[Array, NDArray[np.bool_]]]:
@@ -607,7 +627,8 @@ class SampleCeiling:
                 "d_column": self.d_column, "theta_h": self.theta_h.tolist(),
                 "theta_d": self.theta_d.tolist(), "slack": self.slack,
                 "growth": self.growth, "log_ceiling": self.log_ceiling.tolist(),
-                "grows": self.grows.tolist()}  # type: ignore[union-attr]
+                "grows": self.grows.tolist(),  # type: ignore[union-attr]
+                **({} if self.floor is None else {"floor": self.floor.to_dict()})}
 
     @classmethod
     def from_dict(cls, entry: object) -> SampleCeiling | None:
@@ -626,10 +647,177 @@ class SampleCeiling:
             grows = env["grows"]
             if not isinstance(grows, list) or not all(isinstance(g, bool) for g in grows):
                 return None
+            floor = None
+            if "floor" in env:  # stated: it must be read, or nothing is
+                floor = SampleFloor.from_dict(env["floor"])
+                if floor is None:
+                    return None
             return cls(col, dcol, np.asarray(env["theta_h"], dtype=float),
                        np.asarray(env["theta_d"], dtype=float),
                        np.asarray(env["log_ceiling"], dtype=float), float(slack),
-                       float(growth), np.asarray(grows, dtype=bool))
+                       float(growth), np.asarray(grows, dtype=bool), floor)
+        except (KeyError, TypeError, ValueError):
+            return None
+
+
+#: the lowest log value a floor asks for where no sample sets one: exp of it is the
+#: smallest normal double, so a proved floor also proves the value never rounds to 0
+FLOOR_LOG_MIN = float(np.log(np.finfo(float).tiny))
+
+
+@dataclass(frozen=True)
+class SampleFloor:
+    """A floor of a log fit over theta_h and theta_d from its highlight's samples i at
+    (theta_h_i, theta_d_i) with log floors v_i: p / q >= F(t, d), with
+
+        F(t, d) = max over i with theta_h_i >= t and theta_d_i <= d of v_i
+
+    (:data:`FLOOR_LOG_MIN` where no sample qualifies). A highlight is no dimmer nearer
+    the mirror direction at the same incidence, nor nearer grazing at the same
+    theta_h: the mirror of :class:`SampleCeiling`'s rule, with no slack and no growth,
+    so it asks less than either rule allows. Between the incidence angles measured along
+    the mirror direction, fits under the ceiling alone dipped 100-10^10 x below both
+    neighbours (mystique B to 0.009 1/sr at 75 degrees between 11.9 at 69 and 591 at 80;
+    a cayman fold to 1.6e-10 at 80 degrees). Each v_i is at most the log of 1 / factor of
+    the upper end of every sample in its region, so the samples' own segments are never
+    in conflict with it.
+
+    F falls with t and rises with d; its largest value on a box is at the box's
+    (smallest t, largest d) corner, which is what the proof takes. It is tabulated like
+    :class:`SampleCeiling`, at theta_d steps :data:`ENVELOPE_D_STEP` apart taken at the
+    step at or below d (a little under the formula); +inf (no value allowed) at a
+    non-finite coordinate."""
+
+    column: int
+    d_column: int
+    theta_h: Array
+    theta_d: Array
+    log_floor: Array
+
+    def __post_init__(self) -> None:
+        t = np.asarray(self.theta_h, dtype=float)
+        d = np.asarray(self.theta_d, dtype=float)
+        v = np.asarray(self.log_floor, dtype=float)
+        cols = (self.column, self.d_column)
+        if (t.ndim != 1 or d.shape != t.shape or v.shape != t.shape
+                or not all(np.all(np.isfinite(a)) for a in (t, d, v))
+                or any(isinstance(c, bool) or not isinstance(c, (int, np.integer)) or c < 0
+                       for c in cols) or self.column == self.d_column):
+            raise ValueError("a sample floor needs finite theta_h, theta_d and values of "
+                             "one length and two distinct columns >= 0")
+        for name, value in (("theta_h", t), ("theta_d", d), ("log_floor", v),
+                            ("column", int(self.column)), ("d_column", int(self.d_column))):
+            object.__setattr__(self, name, value)
+        levels = ENVELOPE_D_STEP * np.arange(_D_LEVELS + 1)
+        ths, rank_t = np.unique(t, return_inverse=True)
+        table = np.full((_D_LEVELS + 1, max(ths.size, 1)), FLOOR_LOG_MIN)
+        if t.size:
+            step = np.searchsorted(levels, d, side="left")  # first level at or past d
+            inside = step <= _D_LEVELS
+            np.maximum.at(table, (step[inside], rank_t[inside]), v[inside])
+            # every level at or past a sample's theta_d; every theta_h at or below its own
+            table = np.maximum.accumulate(table, axis=0)
+            table = np.maximum.accumulate(table[:, ::-1], axis=1)[:, ::-1]
+        object.__setattr__(self, "_table", (ths, table))
+
+    @classmethod
+    def of_samples(cls, column: int, d_column: int, theta_h: ArrayLike, theta_d: ArrayLike,
+                   lo: ArrayLike, hi: ArrayLike, factor: float,
+                   highlight: float = HIGHLIGHT_FRACTION) -> SampleFloor:
+        """log(``lo`` / ``factor``) at each highlight sample (``hi`` at ``highlight``
+        times the largest ``hi`` or above, ``lo`` > 0), lowered to log(``hi`` /
+        ``factor``) of every sample in its region; less the samples that never decide F
+        (another has theta_h as large or larger, theta_d as small or smaller and a value
+        as large or larger)."""
+        t = np.asarray(theta_h, dtype=float)
+        d = np.asarray(theta_d, dtype=float)
+        lo_a = np.asarray(lo, dtype=float)
+        hi_a = np.asarray(hi, dtype=float)
+        ok = np.isfinite(t) & np.isfinite(d) & np.isfinite(hi_a)
+        bright = ok & (hi_a >= highlight * np.max(hi_a[ok], initial=0.0)) & (lo_a > 0)
+        cap = np.log(np.maximum(hi_a, np.finfo(float).tiny) / factor)
+        idx = np.flatnonzero(bright)
+        v = np.empty(idx.size)
+        for n, i in enumerate(idx):
+            region = ok & (t <= t[i]) & (d >= d[i])
+            v[n] = min(float(np.log(lo_a[i] / factor)), float(np.min(cap[region])))
+        keep = v > FLOOR_LOG_MIN
+        idx, v = idx[keep], v[keep]
+        order = np.lexsort((d[idx], -t[idx], -v))
+        kept: list[int] = []
+        for n in order:
+            if kept:
+                k = np.asarray(kept)
+                if np.any((t[idx[k]] >= t[idx[n]]) & (d[idx[k]] <= d[idx[n]])
+                          & (v[k] >= v[n])):
+                    continue
+            kept.append(int(n))
+        sel = np.sort(np.asarray(kept, dtype=np.intp))
+        return cls(int(column), int(d_column), t[idx[sel]], d[idx[sel]], v[sel])
+
+    def at2(self, theta_h: ArrayLike, theta_d: ArrayLike) -> Array:
+        """F at each (theta_h, theta_d)."""
+        t = np.atleast_1d(np.asarray(theta_h, dtype=float))
+        d = np.atleast_1d(np.asarray(theta_d, dtype=float))
+        t, d = np.broadcast_arrays(t, d)
+        ths, table = self._table  # type: ignore[attr-defined]
+        ok = np.isfinite(t) & np.isfinite(d)
+        a = np.searchsorted(ths, np.where(ok, t, 0.0), side="left")  # first theta_h >= t
+        past = a >= ths.size
+        k = np.clip(np.floor(np.where(ok, d, 0.0) / ENVELOPE_D_STEP), 0,
+                    _D_LEVELS).astype(np.intp)
+        k = np.where(np.where(ok, d, 0.0) < 0.0, -1, k)
+        val = np.where(past | (k < 0), FLOOR_LOG_MIN,
+                       table[np.maximum(k, 0), np.minimum(a, table.shape[1] - 1)])
+        return np.where(ok, val, np.inf)
+
+    def at_points(self, x: ArrayLike) -> Array:
+        """F at each row of ``x`` (the fit's coordinates)."""
+        xa = np.asarray(x, dtype=float)
+        return self.at2(xa[:, self.column], xa[:, self.d_column])
+
+    def describe(self) -> str:
+        return (f"above the floor of {self.theta_h.size} highlight samples (no dimmer "
+                "nearer the mirror direction or nearer grazing)")
+
+    def of_pieces(self, space: PolynomialSpace) -> Callable[[Array, Array],
+                                                              tuple[Array, NDArray[np.bool_]]]:
+        """F's largest value on pieces of ``space``'s window (at the piece's smallest
+        theta_h and largest theta_d, rounded outward) and whether F is that value all
+        over the piece."""
+        (a, b), (e, f) = ((float(v) for v in space.domain[c])
+                          for c in (self.column, self.d_column))
+        half_t, half_d = 0.5 * (b - a), 0.5 * (f - e)
+
+        def bound(lo: Array, hi: Array) -> tuple[Array, NDArray[np.bool_]]:
+            t_lo = a + (lo[:, self.column] + 1.0) * half_t
+            t_hi = a + (hi[:, self.column] + 1.0) * half_t
+            d_lo = e + (lo[:, self.d_column] + 1.0) * half_d
+            d_hi = e + (hi[:, self.d_column] + 1.0) * half_d
+            pad_t = 1e-12 * (1.0 + np.abs(t_hi))
+            pad_d = 1e-12 * (1.0 + np.abs(d_hi))
+            top = self.at2(t_lo - pad_t, d_hi + pad_d)
+            return top, self.at2(t_hi + pad_t, d_lo - pad_d) == top
+
+        return bound
+
+    def to_dict(self) -> dict[str, object]:
+        return {"column": self.column, "d_column": self.d_column,
+                "theta_h": self.theta_h.tolist(), "theta_d": self.theta_d.tolist(),
+                "log_floor": self.log_floor.tolist()}
+
+    @classmethod
+    def from_dict(cls, entry: object) -> SampleFloor | None:
+        """The floor a stored :meth:`to_dict` states, or None."""
+        if not isinstance(entry, dict):
+            return None
+        try:
+            col, dcol = entry["column"], entry["d_column"]
+            if any(isinstance(v, bool) or not isinstance(v, int) for v in (col, dcol)):
+                return None
+            return cls(col, dcol, np.asarray(entry["theta_h"], dtype=float),
+                       np.asarray(entry["theta_d"], dtype=float),
+                       np.asarray(entry["log_floor"], dtype=float))
         except (KeyError, TypeError, ValueError):
             return None
 
@@ -709,20 +897,25 @@ class ValidityProof:
     ceiling: float | None = None
     # log values: a ceiling that falls with theta_h, proved with C as min(C(theta_h), C)
     envelope: Envelope | None = None
+    # log values under an envelope with a floor: p - F q > 0 proved (F: the floor)
+    floor: SignProof | None = None
 
     @property
     def refuted(self) -> bool:
         """q <= 0 or p < 0 was found at a point of the region (not merely unproved)."""
-        return self.q.counterexample or self.p.counterexample
+        return self.q.counterexample or self.p.counterexample or (
+            self.floor is not None and self.floor.counterexample)
 
     def summary(self) -> str:
         state = "proved" if self.proved else "NOT PROVED"
         if self.values == "log" and self.ceiling is not None:
             env = "" if self.envelope is None else (
                 f", and under the samples' envelope {self.envelope.describe()}")
+            floor = "" if self.floor is None else (
+                f"; p - F q > 0 (F: the floor) {self.floor.summary()}")
             return (f"{state}: q > 0 {self.q.summary()}; the value exp(p/q) > 0 wherever "
                     f"q > 0, and at most {ceiling_bound(self.ceiling):.6g}{env}: "
-                    f"C q - p >= 0 {self.p.summary()}; region: {self.region}")
+                    f"C q - p >= 0 {self.p.summary()}{floor}; region: {self.region}")
         if self.values == "log":
             return (f"{state}: q > 0 {self.q.summary()}; the value exp(p/q) > 0 wherever "
                     f"q > 0; region: {self.region}")
@@ -738,7 +931,9 @@ class ValidityProof:
                                     if np.isfinite(ceiling_bound(self.ceiling)) else None),
                     **({} if self.envelope is None else
                        {"envelope": self.envelope.to_dict()}),
-                    "boxes": self.q.boxes + self.p.boxes}
+                    **({} if self.floor is None else {"floor_margin": self.floor.margin}),
+                    "boxes": self.q.boxes + self.p.boxes + (
+                        0 if self.floor is None else self.floor.boxes)}
         if self.values == "log":
             return {"proved": self.proved, "method": self.q.method, "region": self.region,
                     "q_margin": self.q.margin, "p_margin": None, "values": "log",
@@ -837,6 +1032,7 @@ def prove_validity(rf: RationalFunction, param: str, keep: ArrayLike | None = No
     ``envelope`` as well, min(C(theta_h), C) q - p > 0 (:func:`prove_below`)."""
     from ratfit.core.positivity import prove_below, prove_positive
 
+    pf: SignProof | None = None  # the floor's proof, where the envelope has a floor
     space = rf.space
     fam = rf.to_family()
     Q = space.tensor_coef(fam.q)
@@ -873,17 +1069,30 @@ def prove_validity(rf: RationalFunction, param: str, keep: ArrayLike | None = No
 
             pp = prove_below(sign * space.tensor_coef(qk), sign * space.tensor_coef(pk),
                              fam_name, under, exclude=exclude, max_boxes=max_boxes)
+            floor = getattr(envelope, "floor", None)
+            if floor is not None:
+                # p - F q > 0 as prove_below's c q' - p' > 0 with q' = q, p' = -p and c = -F
+                # at its largest on the piece
+                of_floor = floor.of_pieces(space)
+
+                def over(lo: Array, hi: Array) -> tuple[Array, NDArray[np.bool_]]:
+                    f, exact = of_floor(lo, hi)
+                    return -np.maximum(f, FLOOR_LOG_MIN), exact
+
+                pf = prove_below(sign * space.tensor_coef(qk), -sign * space.tensor_coef(pk),
+                                 fam_name, over, exclude=exclude, max_boxes=max_boxes)
     elif values == "log":
         pp = SignProof(True, np.inf, 1.0, False, np.zeros((0, space.dim)), 0,
                        "not needed: exp(p/q) > 0")
     else:
         pp = prove_positive(sign * P, fam_name, strict=False, exclude=exclude,
                             max_boxes=max_boxes)
-    pts = [space.from_window(s.points) for s in (qp, pp) if len(s.points)]
+    parts = (qp, pp) if pf is None else (qp, pp, pf)
+    pts = [space.from_window(s.points) for s in parts if len(s.points)]
     bad = np.concatenate(pts) if pts else np.zeros((0, space.dim))
     top_c = float(ceiling) if values == "log" and ceiling is not None else None
-    return ValidityProof(qp.proved and pp.proved, qp, pp, region, bad, values, top_c,
-                         None if top_c is None else envelope)
+    return ValidityProof(all(s.proved for s in parts), qp, pp, region, bad, values, top_c,
+                         None if top_c is None else envelope, pf)
 
 
 def reprove_saved(saved: object) -> bool | None:

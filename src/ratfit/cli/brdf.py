@@ -139,8 +139,11 @@ def _split_channels(values: tuple[str, ...]) -> list[str]:
                    "direction (theta_h, less 0.05 rad at the search's points) or farther, "
                    "at their incidence or nearer grazing (theta_d), and nearer the normal "
                    "only as much less as the highlight's samples grow toward grazing; "
-                   "prove it (less 0.1 rad) on the whole evaluated region, not only "
-                   "twice the channel's largest. Default: on for scattered measurements, "
+                   "and over half the lower end of each highlight sample nearer the "
+                   "mirror direction and nearer grazing than it; "
+                   "prove both (the ceiling less 0.1 rad) on the whole evaluated region, "
+                   "not only twice the channel's largest. Default: on for scattered "
+                   "measurements, "
                    "whose unsampled pairs a fit may otherwise fill with highlights; off "
                    "for a full MERL table.")
 @click.option("--held-out-size/--smallest-size", "held_out_size", default=None,

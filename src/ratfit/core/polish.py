@@ -160,6 +160,7 @@ def polish_fit(
     work: WorkBudget | None = None,
     numerator: bool = True,
     ceiling: float | Array | None = None,
+    floor: Array | None = None,
 ) -> RationalFunction | None:
     """The least-squares fit of the same size as ``rf`` whose values stay in the
     inner part (a fraction ``tau`` of each width off both ends) of every segment.
@@ -171,7 +172,8 @@ def polish_fit(
     ``weights`` (N,) weight each point's error (default 1: plain RMSE).
     ``positive_at`` (G, d) are points (original coordinates) where q > 0 and
     (``numerator``) p >= 0, or (``ceiling`` C, a fit of log values; one per point or one
-    for all) p / q <= C, are also
+    for all) p / q <= C and (``floor`` F, one per point; -inf: none there) p / q >= F,
+    are also
     required. Returns None when the QP fails; the result is
     a candidate, to be verified by the caller. ``work`` counts each QP solve
     (each active-set round of each cut-off); once it is exhausted the polish gives
@@ -197,7 +199,7 @@ def polish_fit(
     try:
         return _polish(rf, design, lo, hi, y, weights, positive_at, tau, solver,
                        max_rounds, start_rows, deadline, method, iterations, repair, work,
-                       numerator, ceiling)
+                       numerator, ceiling, floor)
     finally:
         design.close()
 
@@ -206,7 +208,8 @@ def _polish(rf: RationalFunction, D: _Design, lo: Array, hi: Array, y: Array,
             weights: ArrayLike | None, positive_at: ArrayLike | None, tau: float,
             solver: str, max_rounds: int, start_rows: int, deadline: float | None,
             method: str, iterations: int, repair: bool, work: WorkBudget | None,
-            numerator: bool, ceiling: float | Array | None = None) -> RationalFunction | None:
+            numerator: bool, ceiling: float | Array | None = None,
+            floor: Array | None = None) -> RationalFunction | None:
     """:func:`polish_fit` on the samples' basis values ``D``."""
     n = rf.n
     c = np.concatenate([rf.p, rf.q])
@@ -218,7 +221,7 @@ def _polish(rf: RationalFunction, D: _Design, lo: Array, hi: Array, y: Array,
     if np.any(q0 / scale <= 0):
         return None
     w = np.ones(D.N) if weights is None else np.asarray(weights, dtype=float).ravel()
-    grid, p_rows = _positivity_rows(rf, positive_at, numerator, ceiling)
+    grid, p_rows = _positivity_rows(rf, positive_at, numerator, ceiling, floor)
     methods = {"auto": ("qp", "socp"), "qp": ("qp",), "socp": ("socp",)}[method]
     if importlib.util.find_spec("clarabel") is None:
         methods = tuple(x for x in methods if x != "socp") or ("qp",)
@@ -354,9 +357,10 @@ def _polish_pass(D: _Design, lo: Array, hi: Array, y: Array, w: Array, c: Array,
 
 
 def _positivity_rows(rf: RationalFunction, positive_at: ArrayLike | None,
-                     numerator: bool = True, ceiling: float | Array | None = None
-                     ) -> tuple[Array, Array]:
-    """Rows G c >= h keeping q > 0, (``numerator``) p >= 0 and (``ceiling`` C) C q - p >= 0
+                     numerator: bool = True, ceiling: float | Array | None = None,
+                     floor: Array | None = None) -> tuple[Array, Array]:
+    """Rows G c >= h keeping q > 0, (``numerator``) p >= 0, (``ceiling`` C) C q - p >= 0
+    and (``floor`` F, at the points where it is finite) p - F q >= 0
     at ``positive_at``, and 1 / (the norm each p or bound row was divided by), 0 on q rows;
     built once for every pass and cut-off. (q > 0 at the data is part of :class:`_BandRows`.)"""
     k = rf.n + rf.m
@@ -371,6 +375,10 @@ def _positivity_rows(rf: RationalFunction, positive_at: ArrayLike | None,
     if ceiling is not None:  # one C, or one per point
         bounds.append(np.hstack([-Pg, np.reshape(np.asarray(ceiling, dtype=float),
                                                  (-1, 1)) * Qg]))
+    if floor is not None:
+        f = np.asarray(floor, dtype=float).ravel()
+        at = np.isfinite(f)
+        bounds.append(np.hstack([Pg[at], -f[at, None] * Qg[at]]))
     if not bounds:
         return q_rows, np.zeros(len(Qg))
     rows = np.vstack(bounds)

@@ -759,8 +759,11 @@ def scope_text(saved: SavedFit, reproved: bool | None = None) -> str:
                 envs = [p.get("envelope") for p in proofs]
                 over = ("theta_h and theta_d" if all(isinstance(e, dict) and "theta_d" in e
                                                      for e in envs) else "theta_h")
-                under = (f", and under the samples' envelope over {over} (as the fit file "
-                         "states it)" if all(isinstance(e, dict) for e in envs) else "")
+                floored = all(isinstance(e, dict) and "floor" in e for e in envs)
+                under = (f", and under the samples' envelope over {over}"
+                         + (" and above its highlight's floor" if floored else "")
+                         + " (as the fit file states them)"
+                         if all(isinstance(e, dict) for e in envs) else "")
                 return ("Verified at every sample of its data; q > 0 and exp(p/q) <= "
                         + " / ".join(f"{v:.4g}" for v in bounds)
                         + f" (per channel){under} proved where it is evaluated (Bernstein "
