@@ -168,10 +168,15 @@ def test_polish_asks_p_above_a_margin_at_the_positivity_points(monkeypatch) -> N
     pn = np.linalg.norm(polish._design(rf, extra)[0], axis=1)  # rows: p / ||design row||
     expect = np.minimum(1e-6 * y.max() / pn, 0.5 * start)
     assert np.allclose(h[p_rows], expect, rtol=1e-9) and np.all(h[p_rows] > 0)
-    # q rows (at the data, and at the extra points): 1 % of the start's smallest q on
-    # the data (q scaled to mean 1 there)
+    # q rows: at the data 1 % of the start's smallest q there (q scaled to mean 1 there);
+    # at the extra points half the start's own q where that is more (a q held at 1 % of
+    # the data's smallest dipped below 0 between the points, cayman B: a new corner
+    # found by the proof every round, no polish)
     assert np.isclose(q_floor, 0.01 * np.min(D.values(c)[1]), rtol=1e-9)
-    assert np.allclose(h[~p_rows], q_floor, rtol=1e-12)
+    q_start = grid[~p_rows] @ c
+    assert np.all(q_start > 0)
+    np.testing.assert_allclose(h[~p_rows], np.maximum(q_floor, 0.5 * q_start), rtol=1e-12)
+    assert np.any(h[~p_rows] > q_floor)
 
 
 class _Rows:

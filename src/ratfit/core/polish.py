@@ -327,12 +327,16 @@ def _polish_pass(D: _Design, lo: Array, hi: Array, y: Array, w: Array, c: Array,
     # the largest value: a p met to the solver's tolerance (-1e-12) where it touches
     # 0 (a dark region) is a negative BRDF to the validity check, again and again
     # at the next point found beside it (garnet_red G: 4 rounds, no polish).
-    # (half the start's own p where that is smaller: the start stays feasible)
+    # (half the start's own p where that is smaller: the start stays feasible).
+    # q at the positivity points at least half the start's own q there: held at 1 % of
+    # the data's smallest, a polish sat on that floor where no sample is and dipped below
+    # 0 between the points; the proof found a new corner every round (cayman B, every
+    # size: no polish, its diffuse part at 0.62 of the data).
     q_floor = 0.01 * float(q0.min())
     grid_start = np.maximum(grid @ c, 0.0)
     h_grid = np.where(p_rows > 0,
                       np.minimum(1e-6 * float(np.max(np.abs(y))) * p_rows, 0.5 * grid_start),
-                      q_floor)
+                      np.maximum(q_floor, 0.5 * grid_start))
     # The band's inner part may be empty at the minimal size (the search's own
     # margin can be 1e-3 of a width): narrower cut-offs before giving up, the last
     # one half the starting fit's own margin, where the start itself is feasible.
