@@ -11,8 +11,9 @@ material from ``eval_dirs``, the spread over phi_d at theta_h = 0 (an isotropic 
 not depend on phi_d there), the proof stored in the fit file, the largest value
 ``eval_dirs`` gave beside the upper bound the proof states (a fit of log values), the
 largest ratio of a value to the samples' envelope over theta_h the proof states (a
-scattered log fit's steps, at the theta_h where the fit is evaluated), and the seconds
-each took.
+scattered log fit's steps, at the theta_h where the fit is evaluated), the smallest
+ratio of a value to the floor of the highlight's samples the proof states (where one
+sets it), and the seconds each took.
 
     python benchmarks/bench_validity.py FIT.json [FIT2.json ...] [--pairs 1000000]
 """
@@ -89,7 +90,7 @@ def phi_d_spread(fit, k: int = 2000) -> np.ndarray:
 
 def main() -> None:
     from ratfit.brdf.fitter import load_brdf_fit
-    from ratfit.brdf.validity import envelope_from_dict
+    from ratfit.brdf.validity import FLOOR_LOG_MIN, envelope_from_dict
     from ratfit.render.material import FitMaterial
 
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
@@ -121,10 +122,17 @@ def main() -> None:
             pr = proofs[j] if j < len(proofs) else None
             steps = envelope_from_dict(pr)
             env = "-" if steps is None else f"{np.max(r / np.exp(steps.at_points(kept))):.3g}"
+            floor = getattr(steps, "floor", None)
+            low = "-"
+            if floor is not None:
+                f = floor.at_points(kept)
+                held = f > FLOOR_LOG_MIN
+                if held.any():
+                    low = f"{np.min(r[held] / np.exp(f[held])):.3g} ({int(held.sum())})"
             rows.append([
                 f"{path.stem}", name, f"{np.min(r):.4g}", f"{np.min(cv[:, j]):.4g}",
                 f"{np.min(mat[:, j]):.4g}", str(bad), f"{np.max(r):.4g}",
-                f"{pr['value_bound']:.4g}" if pr and pr.get("value_bound") else "-", env,
+                f"{pr['value_bound']:.4g}" if pr and pr.get("value_bound") else "-", env, low,
                 f"{np.max(np.abs(cv[:, j] - r) / scale):.1e}",
                 f"{np.max(np.abs(mat[:, j] - r) / scale):.1e}", f"{spread[j]:.1e}",
                 "yes" if pr and pr.get("proved") else "no",
@@ -132,12 +140,14 @@ def main() -> None:
                 f"{t_eval:.2f}/{t_c:.2f}/{t_mat:.2f}"])
     rep.table(f"{args.pairs} random pairs over the hemisphere (seed {args.seed})",
               ["fit", "ch", "min eval", "min C", "min plugin", "neg|nonfinite", "max eval",
-               "proved bound", "max / envelope", "C vs eval", "plugin vs eval",
+               "proved bound", "max / envelope", "min / floor", "C vs eval", "plugin vs eval",
                "phi_d spread th_h=0", "proved", "q margin", "s eval/C/plugin"], rows,
               note="proved bound: the largest value the proof allows (fits of log values: "
                    "exp(p/q) <= twice the largest segment end); max / envelope: the "
                    "largest value over the proved envelope at its coordinates (at most 1 "
-                   "where proved); '-': none stated.")
+                   "where proved); min / floor: the smallest value over the proved floor "
+                   "where one of the highlight's samples sets it (at least 1 where proved; "
+                   "in brackets: how many pairs that is); '-': none stated.")
     rep.write()
 
 
