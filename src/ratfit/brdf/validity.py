@@ -606,21 +606,7 @@ class SampleCeiling:
         window: C at the piece's largest theta_h and smallest theta_d (C falls with
         theta_h and rises with theta_d), rounded outward, and whether C is that value all
         over the piece."""
-        (a, b), (e, f) = ((float(v) for v in space.domain[c])
-                          for c in (self.column, self.d_column))
-        half_t, half_d = 0.5 * (b - a), 0.5 * (f - e)
-
-        def bound(lo: Array, hi: Array) -> tuple[Array, NDArray[np.bool_]]:
-            t_lo = a + (lo[:, self.column] + 1.0) * half_t
-            t_hi = a + (hi[:, self.column] + 1.0) * half_t
-            d_lo = e + (lo[:, self.d_column] + 1.0) * half_d
-            d_hi = e + (hi[:, self.d_column] + 1.0) * half_d
-            pad_t = 1e-12 * (1.0 + np.abs(t_hi))
-            pad_d = 1e-12 * (1.0 + np.abs(d_hi))
-            c = self.at2(t_hi + pad_t, d_lo - pad_d)
-            return c, self.at2(t_lo - pad_t, d_hi + pad_d) == c
-
-        return bound
+        return _corner_bound(space, self.column, self.d_column, self.at2, floor=False)
 
     def to_dict(self) -> dict[str, object]:
         return {"coordinate": "theta_h, theta_d", "column": self.column,
@@ -785,21 +771,7 @@ class SampleFloor:
         """F's largest value on pieces of ``space``'s window (at the piece's smallest
         theta_h and largest theta_d, rounded outward) and whether F is that value all
         over the piece."""
-        (a, b), (e, f) = ((float(v) for v in space.domain[c])
-                          for c in (self.column, self.d_column))
-        half_t, half_d = 0.5 * (b - a), 0.5 * (f - e)
-
-        def bound(lo: Array, hi: Array) -> tuple[Array, NDArray[np.bool_]]:
-            t_lo = a + (lo[:, self.column] + 1.0) * half_t
-            t_hi = a + (hi[:, self.column] + 1.0) * half_t
-            d_lo = e + (lo[:, self.d_column] + 1.0) * half_d
-            d_hi = e + (hi[:, self.d_column] + 1.0) * half_d
-            pad_t = 1e-12 * (1.0 + np.abs(t_hi))
-            pad_d = 1e-12 * (1.0 + np.abs(d_hi))
-            top = self.at2(t_lo - pad_t, d_hi + pad_d)
-            return top, self.at2(t_hi + pad_t, d_lo - pad_d) == top
-
-        return bound
+        return _corner_bound(space, self.column, self.d_column, self.at2, floor=True)
 
     def to_dict(self) -> dict[str, object]:
         return {"column": self.column, "d_column": self.d_column,
@@ -820,6 +792,32 @@ class SampleFloor:
                        np.asarray(entry["log_floor"], dtype=float))
         except (KeyError, TypeError, ValueError):
             return None
+
+
+def _corner_bound(space: PolynomialSpace, column: int, d_column: int,
+                  at2: Callable[[ArrayLike, ArrayLike], Array], *, floor: bool
+                  ) -> Callable[[Array, Array], tuple[Array, NDArray[np.bool_]]]:
+    """The bound on pieces of ``space``'s window of a step function ``at2(t, d)`` that
+    falls with theta_h and rises with theta_d: its value at each piece's (largest t,
+    smallest d) corner, its smallest there (a ceiling), or with ``floor`` at the
+    (smallest t, largest d) corner, its largest, rounded outward; and whether it is that
+    value all over the piece (the opposite corner has it too)."""
+    (a, b), (e, f) = ((float(v) for v in space.domain[c]) for c in (column, d_column))
+    half_t, half_d = 0.5 * (b - a), 0.5 * (f - e)
+
+    def bound(lo: Array, hi: Array) -> tuple[Array, NDArray[np.bool_]]:
+        t_lo = a + (lo[:, column] + 1.0) * half_t
+        t_hi = a + (hi[:, column] + 1.0) * half_t
+        d_lo = e + (lo[:, d_column] + 1.0) * half_d
+        d_hi = e + (hi[:, d_column] + 1.0) * half_d
+        pad_t = 1e-12 * (1.0 + np.abs(t_hi))
+        pad_d = 1e-12 * (1.0 + np.abs(d_hi))
+        low_corner = at2(t_hi + pad_t, d_lo - pad_d)  # the smallest value on the piece
+        high_corner = at2(t_lo - pad_t, d_hi + pad_d)  # the largest
+        value = high_corner if floor else low_corner
+        return value, low_corner == high_corner
+
+    return bound
 
 
 def grazing(theta_d: ArrayLike) -> Array:
