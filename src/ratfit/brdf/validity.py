@@ -575,11 +575,8 @@ class SampleCeiling:
 
     def at2(self, theta_h: ArrayLike, theta_d: ArrayLike) -> Array:
         """C at each (theta_h, theta_d)."""
-        t = np.atleast_1d(np.asarray(theta_h, dtype=float))
-        d = np.atleast_1d(np.asarray(theta_d, dtype=float))
-        t, d = np.broadcast_arrays(t, d)
+        t, d, ok = _pairs(theta_h, theta_d)
         ths, table = self._table  # type: ignore[attr-defined]
-        ok = np.isfinite(t) & np.isfinite(d)
         a = np.minimum(np.searchsorted(ths, np.where(ok, t, 0.0) - self.slack, side="left"),
                        ths.size - 1)
         k = np.clip(np.floor(np.where(ok, d, 0.0) / ENVELOPE_D_STEP), 0,
@@ -595,10 +592,6 @@ class SampleCeiling:
         below = (f"over theta_h and theta_d ({self.theta_h.size} samples, growing toward "
                  f"grazing as (1 / cos theta_d)^{self.growth:.3g} at most)")
         return below if self.floor is None else f"{below}, and {self.floor.describe()}"
-
-    def floor_at_points(self, x: ArrayLike) -> Array | None:
-        """The floor at each row of ``x``, or None without one."""
-        return None if self.floor is None else self.floor.at_points(x)
 
     def of_pieces(self, space: PolynomialSpace) -> Callable[[Array, Array],
                                                               tuple[Array, NDArray[np.bool_]]]:
@@ -743,11 +736,8 @@ class SampleFloor:
 
     def at2(self, theta_h: ArrayLike, theta_d: ArrayLike) -> Array:
         """F at each (theta_h, theta_d)."""
-        t = np.atleast_1d(np.asarray(theta_h, dtype=float))
-        d = np.atleast_1d(np.asarray(theta_d, dtype=float))
-        t, d = np.broadcast_arrays(t, d)
+        t, d, ok = _pairs(theta_h, theta_d)
         ths, table = self._table  # type: ignore[attr-defined]
-        ok = np.isfinite(t) & np.isfinite(d)
         a = np.searchsorted(ths, np.where(ok, t, 0.0), side="left")  # first theta_h >= t
         past = a >= ths.size
         k = np.clip(np.floor(np.where(ok, d, 0.0) / ENVELOPE_D_STEP), 0,
@@ -792,6 +782,15 @@ class SampleFloor:
                        np.asarray(entry["log_floor"], dtype=float))
         except (KeyError, TypeError, ValueError):
             return None
+
+
+def _pairs(theta_h: ArrayLike, theta_d: ArrayLike) -> tuple[Array, Array, NDArray[np.bool_]]:
+    """(theta_h, theta_d) as broadcast 1-D float arrays, and where both are finite: what
+    a table over the two looks up (a non-finite pair is the caller's violation)."""
+    t = np.atleast_1d(np.asarray(theta_h, dtype=float))
+    d = np.atleast_1d(np.asarray(theta_d, dtype=float))
+    t, d = np.broadcast_arrays(t, d)
+    return t, d, np.isfinite(t) & np.isfinite(d)
 
 
 def _corner_bound(space: PolynomialSpace, column: int, d_column: int,
