@@ -224,6 +224,41 @@ def _floor_by_hand(theta_h, theta_d, lo, hi, t, d, factor=2.0, highlight=0.01):
     return np.array(out)
 
 
+def test_a_tables_cells_at_one_angle_pair_are_one_point() -> None:
+    """A MERL table's phi_d cells share (theta_h, theta_d) up to rounding: the growth, the
+    ceiling and the floor are those of the cells' values at exact angles, and no sample
+    the ceiling or the floor keeps is dominated by another it keeps."""
+    rng = np.random.default_rng(7)
+    t_grid = (np.arange(12) / 12) ** 2 * 1.4
+    d_grid = np.linspace(0.0, 1.4, 10)
+    th = np.repeat(np.repeat(t_grid, 10), 15)
+    td = np.repeat(np.tile(d_grid, 12), 15)
+    y = np.exp(-6 * th + 2 * td) * np.exp(rng.normal(0.0, 0.3, th.size))
+    noisy_t = th * (1 + rng.uniform(-1e-15, 1e-15, th.size)) + rng.uniform(0, 1e-12, th.size)
+    noisy_d = td + rng.uniform(-1e-12, 1e-12, td.size)
+    g = theta_d_growth(th, td, y)
+    assert g > 0 and theta_d_growth(noisy_t, noisy_d, y) == pytest.approx(g, rel=1e-9)
+    env = SampleCeiling.of_samples(0, 1, th, td, y, 0.05, 2.0, g)
+    assert env.theta_h.size < 120 * 2  # at most one a point and kind (1800 samples)
+    t, d = rng.uniform(-0.1, 1.5, 1000), rng.uniform(-0.1, 1.5, 1000)
+    np.testing.assert_allclose(env.at2(t, d),
+                               _by_hand2(th, td, y, t, d, 0.05, g, step=ENVELOPE_D_STEP),
+                               rtol=1e-12)
+    kt, kd, kv, kg = env.theta_h, env.theta_d, env.log_ceiling, env.grows
+    for i in range(kt.size):
+        others = np.arange(kt.size) != i
+        over = others & (kt >= kt[i]) & (kv >= kv[i]) & (~kg | (kg[i] & (kd <= kd[i])))
+        assert not over.any()
+    lo, hi = 0.7 * y, 1.3 * y
+    floor = SampleFloor.of_samples(0, 1, th, td, lo, hi, 2.0)
+    np.testing.assert_array_equal(floor.at2(t, d), _floor_by_hand(th, td, lo, hi, t, d))
+    ft, fd, fv = floor.theta_h, floor.theta_d, floor.log_floor
+    assert 0 < ft.size < 120
+    for i in range(ft.size):
+        others = np.arange(ft.size) != i
+        assert not np.any(others & (ft >= ft[i]) & (fd <= fd[i]) & (fv >= fv[i]))
+
+
 def test_the_floor_is_the_highlight_samples_lower_ends_nearer_mirror_and_grazing() -> None:
     rng = np.random.default_rng(4)
     th, td = rng.uniform(0, 1.4, 400), rng.uniform(0.1, 1.4, 400)
@@ -309,8 +344,12 @@ def test_row_ceilings_are_the_envelope_under_the_channel_ceiling() -> None:
     f = BRDFFitter(parametrization="RUSIN_TH_TD_SYM", values="log", envelope=True)
     seg = brdf_segments(ds, dt=WIDTHS["dt"], abs_width=WIDTHS["abs_width"])
     f._ceilings = np.log(LOG_CEILING_FACTOR * seg.hi.max(axis=0))
-    f._envelopes = f._theta_h_envelopes(seg, ENVELOPE_SLACK)
+    f._envelopes, proof = f._theta_h_envelopes(seg)
     assert all(isinstance(e, SampleCeiling) for e in f._envelopes)
+    # the proof's: the same samples and floor, at the proof's slack
+    assert all(p.slack == ENVELOPE_PROOF_SLACK and p.floor is e.floor
+               and np.array_equal(p.log_ceiling, e.log_ceiling)
+               for e, p in zip(f._envelopes, proof, strict=True))
     pts = np.array([[0.0018, 1.4, 0.0], [0.6, 1.4, 0.0], [1.3, 1.4, 0.0],
                     [0.0018, 0.3, 0.0]])
     rows = f._row_ceiling(0, pts)
@@ -325,12 +364,14 @@ def test_row_ceilings_are_the_envelope_under_the_channel_ceiling() -> None:
     # a frame without theta_d keeps the envelope over theta_h
     g = BRDFFitter(parametrization="RUSIN_TH_TD_PD", values="log", envelope=True,
                    used_coords=(0, 2))
-    one = g._theta_h_envelopes(Segments(seg.x[:, [0, 2]], seg.lo, seg.hi, seg.y), 0.05)
-    assert isinstance(one[0], StepCeiling)
-    np.testing.assert_allclose(one[0].at(pts[:, 0]), _by_hand(seg.x[:, 0], seg.hi[:, 0],
-                                                             pts[:, 0], 0.05))
+    one, one_proof = g._theta_h_envelopes(Segments(seg.x[:, [0, 2]], seg.lo, seg.hi, seg.y))
+    assert isinstance(one[0], StepCeiling) and isinstance(one_proof[0], StepCeiling)
+    for env_t, slack in ((one[0], ENVELOPE_SLACK), (one_proof[0], ENVELOPE_PROOF_SLACK)):
+        np.testing.assert_allclose(env_t.at(pts[:, 0]), _by_hand(seg.x[:, 0], seg.hi[:, 0],
+                                                                 pts[:, 0], slack))
     f.envelope = False
-    f._envelopes = f._theta_h_envelopes(seg, ENVELOPE_SLACK)
+    f._envelopes, proof = f._theta_h_envelopes(seg)
+    assert proof is None
     assert f._row_ceiling(0, pts) == pytest.approx(f._ceilings[0] - CEILING_ROW_MARGIN)
 
 

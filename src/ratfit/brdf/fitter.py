@@ -1302,10 +1302,7 @@ class BRDFFitter(RationalFitter):
             # segments stay for the last check of exp(p / q) itself
             self._value_segments = segments
             self._ceilings = log_ceilings(segments)
-            growth = self._theta_d_growth(segments)  # once for the rows and the proof
-            self._envelopes = self._theta_h_envelopes(segments, ENVELOPE_SLACK, growth)
-            self._step_ceilings = self._theta_h_envelopes(segments, ENVELOPE_PROOF_SLACK,
-                                                          growth)
+            self._envelopes, self._step_ceilings = self._theta_h_envelopes(segments)
             segments = log_segments(segments)
         if not self._full_search:
             self._points: dict[int, list[Array]] = {}
@@ -1472,43 +1469,42 @@ class BRDFFitter(RationalFitter):
         steps = self.__dict__.get("_step_ceilings")
         return None if steps is None else steps[j]
 
-    def _theta_d_growth(self, segments: Segments) -> float | None:
-        """The growth toward grazing of ``segments``' highlight over all their channels
-        (:func:`~ratfit.brdf.validity.theta_d_growth`; the highlight's geometry; a
-        channel fitted again alone, as one widened alone, has its own samples' growth),
-        or None where the fit's coordinates lack theta_h or theta_d."""
-        from ratfit.brdf.validity import theta_d_growth
-
-        col = theta_h_column(self.parametrization, self.used_coords)
-        dcol = theta_d_column(self.parametrization, self.used_coords)
-        if col is None or dcol is None:
-            return None
-        return theta_d_growth(segments.x[:, col], segments.x[:, dcol], segments.hi)
-
-    def _theta_h_envelopes(self, segments: Segments, slack: float,
-                           growth: float | None = None) -> list[Envelope] | None:
-        """Each channel's envelope of the value ``segments`` with ``slack``
-        (:attr:`envelope`, a frame with theta_h): over theta_h and theta_d where the
-        frame has both (:class:`~ratfit.brdf.validity.SampleCeiling`, with ``growth``,
-        by default that of all of ``segments``' channels), else over theta_h
-        (:class:`~ratfit.brdf.validity.StepCeiling`); None without :attr:`envelope`."""
+    def _theta_h_envelopes(self, segments: Segments
+                           ) -> tuple[list[Envelope] | None, list[Envelope] | None]:
+        """Each channel's envelope of the value ``segments`` (:attr:`envelope`, a frame
+        with theta_h) for the search's and polish's rows (:data:`ENVELOPE_SLACK`) and for
+        the proof (:data:`ENVELOPE_PROOF_SLACK`): over theta_h and theta_d where the
+        frame has both (:class:`~ratfit.brdf.validity.SampleCeiling`, growing toward
+        grazing as fast as any of ``segments``' channels' highlight does
+        (:func:`~ratfit.brdf.validity.theta_d_growth`), with the highlight's
+        :class:`~ratfit.brdf.validity.SampleFloor`; both built once for the two), else
+        over theta_h (:class:`~ratfit.brdf.validity.StepCeiling`); None without
+        :attr:`envelope`."""
         from ratfit.brdf.validity import SampleCeiling, SampleFloor, StepCeiling, theta_d_growth
 
         col = theta_h_column(self.parametrization, self.used_coords)
         if not self.envelope or col is None:
-            return None
+            return None, None
         dcol = theta_d_column(self.parametrization, self.used_coords)
-        if dcol is not None:
-            th, td = segments.x[:, col], segments.x[:, dcol]
-            g = theta_d_growth(th, td, segments.hi) if growth is None else growth
-            return [SampleCeiling.of_samples(
-                col, dcol, th, td, segments.hi[:, j], slack, LOG_CEILING_FACTOR, g,
-                floor=SampleFloor.of_samples(col, dcol, th, td, segments.lo[:, j],
-                                             segments.hi[:, j], LOG_FLOOR_FACTOR))
-                for j in range(segments.n_channels)]
-        return [StepCeiling.of_samples(col, segments.x[:, col], segments.hi[:, j], slack,
-                                       LOG_CEILING_FACTOR)
-                for j in range(segments.n_channels)]
+        slacks = (ENVELOPE_SLACK, ENVELOPE_PROOF_SLACK)
+        if dcol is None:
+            steps: list[list[Envelope]] = [[StepCeiling.of_samples(
+                col, segments.x[:, col], segments.hi[:, j], slack, LOG_CEILING_FACTOR)
+                for j in range(segments.n_channels)] for slack in slacks]
+            return steps[0], steps[1]
+        th, td = segments.x[:, col], segments.x[:, dcol]
+        growth = theta_d_growth(th, td, segments.hi)
+        rows: list[Envelope] = []
+        proof: list[Envelope] = []
+        for j in range(segments.n_channels):
+            floor = SampleFloor.of_samples(col, dcol, th, td, segments.lo[:, j],
+                                           segments.hi[:, j], LOG_FLOOR_FACTOR)
+            ceiling = SampleCeiling.of_samples(col, dcol, th, td, segments.hi[:, j],
+                                               ENVELOPE_SLACK, LOG_CEILING_FACTOR, growth,
+                                               floor=floor)
+            rows.append(ceiling)
+            proof.append(replace(ceiling, slack=ENVELOPE_PROOF_SLACK))
+        return rows, proof
 
     def _values_checked(self, res: FitResult, j: int) -> FitResult:
         """A verified fit of log values checked as its values: exp(p / q), as every
