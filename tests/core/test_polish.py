@@ -7,7 +7,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from ratfit.core.polish import polish_fit
+from ratfit.core.polish import bound_rows, polish_fit
 from ratfit.core.segments import Segments
 from ratfit.core.verify import verify
 from ratfit.fitting.search import RationalFitter
@@ -364,3 +364,20 @@ def test_screened_rounds_give_the_fit_of_the_full_rounds(monkeypatch) -> None:
         fits.append(_rmse(pol, seg))
     assert fits[1] <= 1.01 * fits[0] and fits[0] < 0.9 * _rmse(rf, seg)
     assert passes[1] < passes[0]
+
+
+def test_bound_rows_are_the_ceiling_and_floor_in_coefficients() -> None:
+    rng = np.random.default_rng(3)
+    P, Q = rng.normal(size=(6, 3)), rng.normal(size=(6, 2))
+    p, q = rng.normal(size=3), rng.normal(size=2)
+    c = np.concatenate([p, q])
+    ceiling = rng.normal(size=6)
+    floor = np.array([0.5, -np.inf, 2.0, -np.inf, -np.inf, 1.0])
+    rows = bound_rows(P, Q, ceiling, floor)
+    assert rows.shape == (6 + 3, 5)  # one ceiling row a point, a floor row where finite
+    np.testing.assert_allclose(rows[:6] @ c, ceiling * (Q @ q) - P @ p, rtol=1e-13)
+    at = np.isfinite(floor)
+    np.testing.assert_allclose(rows[6:] @ c, (P @ p - floor * (Q @ q))[at], rtol=1e-13)
+    # one ceiling for every point; nothing asked, no rows
+    np.testing.assert_allclose(bound_rows(P, Q, 2.0) @ c, 2.0 * (Q @ q) - P @ p, rtol=1e-13)
+    assert bound_rows(P, Q).shape == (0, 5)

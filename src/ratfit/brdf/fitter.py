@@ -40,6 +40,7 @@ from ratfit.brdf.parametrizations import (
 )
 from ratfit.core.bases import PolynomialSpace
 from ratfit.core.options import DEFAULT_MAX_TOTAL, DEFAULT_TIME_LIMIT
+from ratfit.core.polish import bound_rows
 from ratfit.core.qp import ArnoldiSystem
 from ratfit.core.rational import RationalFunction, ratio_values
 from ratfit.core.results import FitResult
@@ -1995,15 +1996,8 @@ def _valid_rows(base: ArnoldiSystem, t_grid: Array, numerator: bool = True,
     floored = np.zeros(len(t_grid), dtype=bool) if f is None else np.isfinite(f)
 
     def bound() -> Array:
-        P = base.p_basis.design(t_grid, base.n, window=True)
-        Q = base.q_basis.design(t_grid, base.m, window=True)
-        parts = []
-        if ceiling is not None:
-            c = np.reshape(np.asarray(ceiling, dtype=float), (-1, 1))
-            parts.append(np.hstack([-P, c * Q]))
-        if f is not None:
-            parts.append(np.hstack([P[floored], -f[floored, None] * Q[floored]]))
-        d = np.vstack(parts)
+        d = bound_rows(base.p_basis.design(t_grid, base.n, window=True),
+                       base.q_basis.design(t_grid, base.m, window=True), ceiling, f)
         return d / np.linalg.norm(d, axis=1)[:, None]
 
     count = (0 if ceiling is None else len(t_grid)) + int(floored.sum())

@@ -43,7 +43,7 @@ from ratfit.core.solvers import solve_qp
 from ratfit.core.systems import smallest
 from ratfit.core.work import WorkBudget
 
-__all__ = ["polish_fit"]
+__all__ = ["bound_rows", "polish_fit"]
 
 Array = NDArray[np.float64]
 
@@ -360,6 +360,24 @@ def _polish_pass(D: _Design, lo: Array, hi: Array, y: Array, w: Array, c: Array,
     return None
 
 
+def bound_rows(P: Array, Q: Array, ceiling: float | ArrayLike | None = None,
+               floor: ArrayLike | None = None) -> Array:
+    """Rows in (p, q)'s coefficients, from p's and q's basis values ``P`` and ``Q`` at
+    some points, for C q - p >= 0 (``ceiling`` C: one number, or one per point) and for
+    p - F q >= 0 (``floor`` F, one per point, at the points where it is finite): where
+    q > 0, F <= p / q <= C. Not normalised; the search's rows
+    (:func:`ratfit.brdf.fitter._valid_rows`) and the polish's
+    (:func:`_positivity_rows`) are these, each scaled its own way."""
+    parts = [np.zeros((0, P.shape[1] + Q.shape[1]))]
+    if ceiling is not None:
+        parts.append(np.hstack([-P, np.reshape(np.asarray(ceiling, dtype=float), (-1, 1)) * Q]))
+    if floor is not None:
+        f = np.asarray(floor, dtype=float).ravel()
+        at = np.isfinite(f)
+        parts.append(np.hstack([P[at], -f[at, None] * Q[at]]))
+    return np.vstack(parts)
+
+
 def _positivity_rows(rf: RationalFunction, positive_at: ArrayLike | None,
                      numerator: bool = True, ceiling: float | Array | None = None,
                      floor: Array | None = None) -> tuple[Array, Array]:
@@ -373,19 +391,12 @@ def _positivity_rows(rf: RationalFunction, positive_at: ArrayLike | None,
         return np.zeros((0, k)), np.zeros(0)
     Pg, Qg = _design(rf, pts)
     q_rows = np.hstack([np.zeros_like(Pg), Qg])
-    bounds = []
+    bounds = [bound_rows(Pg, Qg, ceiling, floor)]
     if numerator:
-        bounds.append(np.hstack([Pg, np.zeros_like(Qg)]))
-    if ceiling is not None:  # one C, or one per point
-        bounds.append(np.hstack([-Pg, np.reshape(np.asarray(ceiling, dtype=float),
-                                                 (-1, 1)) * Qg]))
-    if floor is not None:
-        f = np.asarray(floor, dtype=float).ravel()
-        at = np.isfinite(f)
-        bounds.append(np.hstack([Pg[at], -f[at, None] * Qg[at]]))
-    if not bounds:
-        return q_rows, np.zeros(len(Qg))
+        bounds.insert(0, np.hstack([Pg, np.zeros_like(Qg)]))
     rows = np.vstack(bounds)
+    if not len(rows):
+        return q_rows, np.zeros(len(Qg))
     norms = np.linalg.norm(rows, axis=1)
     norms[norms == 0] = 1.0
     return (np.vstack([q_rows, rows / norms[:, None]]),
