@@ -108,3 +108,22 @@ def test_default_fit_of_a_table_is_log_values_in_the_half_vector_frame(
     assert np.all(got > 0) and np.all(np.isfinite(got))
     assert np.median(rel) < 0.05, np.median(rel, axis=0)
     assert np.percentile(rel, 95) < 0.25
+
+
+def test_a_table_builds_no_envelope_and_measures_no_growth(table: Path, monkeypatch) -> None:
+    """A table's cells leave no gap for an envelope to close; measuring its highlight's
+    growth took minutes at MERL's 1.1e6 cells (a loop over 141 755 distinct angle pairs),
+    so a table's log fit must not ask for it."""
+    import ratfit.brdf.validity as validity
+
+    def refuse(*args, **kwargs):
+        raise AssertionError("theta_d_growth called for a full table")
+
+    monkeypatch.setattr(validity, "theta_d_growth", refuse)
+    ds = samples_dataset(read_brdf(table), HALF_VECTOR, max_points=1500)
+    fitter, _seg, meta = fit_brdf(ds, values="log", max_total=12)
+    assert fitter.envelope is False and meta["envelope"] is None
+    # scattered samples of the same material do build one, with the growth
+    scattered = type(ds)(**{**ds.__dict__, "meta": {**ds.meta, "format": "cornell"}})
+    with pytest.raises(AssertionError, match="for a full table"):
+        fit_brdf(scattered, values="log", max_total=12)
