@@ -32,7 +32,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from ratfit.brdf.parametrizations import Parametrization, find_parametrization
 from ratfit.core.bases import PolynomialSpace
-from ratfit.core.dominance import first_of_groups, prefix_max
+from ratfit.core.dominance import first_of_groups, groups, prefix_max
 from ratfit.core.positivity import SignProof
 from ratfit.core.rational import RationalFunction
 from ratfit.errors import InputError
@@ -720,7 +720,7 @@ class SampleFloor:
         # the smallest cap in each sample's region (theta_h as small or smaller, theta_d
         # as large or larger), over the distinct (theta_h, theta_d) points
         t_ok, d_ok = np.where(ok, t, np.inf), np.where(ok, d, np.inf)
-        first, group = _pair_groups(t_ok, d_ok)
+        first, group = groups(t_ok, d_ok)
         point_cap = np.full(first.size, np.inf)
         np.minimum.at(point_cap, group[ok], cap[ok])
         point_t, point_d = t_ok[first], d_ok[first]  # in order of theta_h
@@ -856,7 +856,7 @@ def theta_d_growth(theta_h: ArrayLike, theta_d: ArrayLike, top: ArrayLike, *,
     # largest from the lower value of the one nearer the normal to the higher of the
     # other
     t, d = _snap(t, SAME_ANGLE), _snap(d, SAME_ANGLE)
-    first, group = _pair_groups(t, d)
+    first, group = groups(t, d)
     n_groups = first.size
     high = np.full((n_groups, v.shape[1]), -np.inf)
     low = np.full((n_groups, v.shape[1]), np.inf)
@@ -892,18 +892,6 @@ def _snap(x: Array, tol: float) -> Array:
         return x
     start = np.concatenate([[True], ~(np.diff(u) < tol)])
     return u[np.flatnonzero(start)][np.cumsum(start) - 1][inv.ravel()]
-
-
-def _pair_groups(t: Array, d: Array) -> tuple[NDArray[np.intp], NDArray[np.intp]]:
-    """The distinct (``t``, ``d``) points, each as its first sample, in order of t then
-    d, and each sample's point."""
-    order = np.lexsort((d, t))
-    ts, ds = t[order], d[order]
-    new = np.ones(t.size, dtype=bool)
-    new[1:] = (ts[1:] != ts[:-1]) | (ds[1:] != ds[:-1])
-    group = np.empty(t.size, dtype=np.intp)
-    group[order] = np.cumsum(new) - 1
-    return order[new], group
 
 
 #: a log fit's envelope: over theta_h alone, or over theta_h and theta_d

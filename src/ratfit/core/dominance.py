@@ -15,7 +15,7 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-__all__ = ["first_of_groups", "prefix_max"]
+__all__ = ["first_of_groups", "groups", "prefix_max"]
 
 
 def prefix_max(key: ArrayLike, value: ArrayLike, count: ArrayLike,
@@ -62,18 +62,28 @@ def prefix_max(key: ArrayLike, value: ArrayLike, count: ArrayLike,
     return out
 
 
+def groups(*keys: ArrayLike) -> tuple[NDArray[np.intp], NDArray[np.intp]]:
+    """The distinct points of ``keys`` (arrays of one length, the first the most
+    significant), each as the index of its first element, in sorted order, and each
+    element's point."""
+    cols = [np.asarray(k) for k in keys]
+    order = np.lexsort(cols[::-1])  # stable: within a point, the elements' own order
+    new = np.ones(order.size, dtype=bool)
+    new[1:] = False
+    for c in cols:
+        s = c[order]
+        new[1:] |= s[1:] != s[:-1]
+    label = np.empty(order.size, dtype=np.intp)
+    label[order] = np.cumsum(new) - 1
+    return order[new], label
+
+
 def first_of_groups(order: ArrayLike, *keys: ArrayLike) -> NDArray[np.intp]:
     """The first element of ``order`` (indices) in each group of equal ``keys``
     (arrays over all indices), as indices, in the order of ``order``."""
     idx = np.asarray(order, dtype=np.intp)
     if idx.size == 0:
         return idx
-    cols = [np.asarray(k)[idx] for k in keys]
-    by_key = np.lexsort(cols[::-1])  # stable: within a group, the order of ``order``
-    same = np.zeros(idx.size, dtype=bool)  # as the element before it in every key
-    same[1:] = True
-    for c in cols:
-        s = c[by_key]
-        same[1:] &= s[1:] == s[:-1]
-    starts = np.flatnonzero(~same)
-    return idx[np.sort(by_key[starts])]
+    _, label = groups(*(np.asarray(k)[idx] for k in keys))
+    _, first = np.unique(label, return_index=True)  # each group's first position
+    return idx[np.sort(first)]
