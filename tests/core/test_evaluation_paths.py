@@ -41,10 +41,11 @@ def _reference(basis: ArnoldiBasis, t: np.ndarray, c: np.ndarray) -> np.ndarray:
 def test_exact_evaluation_is_the_documented_recurrence_bit_for_bit(k: int) -> None:
     basis, t = _basis(k)
     c = np.random.default_rng(k).normal(size=k)
-    pts = t[:2500]  # several blocks of the in-place path and a short last one
+    pts = t[:2500]
     got = basis.evaluate(pts, c, window=True)
     np.testing.assert_array_equal(got, _reference(basis, pts, c))
-    # the same values whatever the block size (one block, or blocks of 1 000 points)
+    # the same values whatever the block size (one block, or two blocks of 1 000
+    # points and a short last one)
     saved = arnoldi._SUM_BLOCK
     try:
         arnoldi._SUM_BLOCK = 1000

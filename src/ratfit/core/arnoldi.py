@@ -43,16 +43,14 @@ Array = NDArray[np.float64]
 _MULX = {"legendre": _leg.legmulx, "chebyshev": _cheb.chebmulx, "monomial": _poly.polymulx}
 
 
-# Points per block of a design evaluation: the block's k rows stay in cache while the
-# recurrence reads them back (262 144 points, 35 functions: 0.065 s in blocks of 4096,
-# 0.14 s in blocks of 32 768, 0.2 s in one piece).
-_BLOCK = 4096
-# Points per block of :meth:`ArnoldiBasis.evaluate` (its in-place recurrence keeps two
-# vectors of a block besides the basis values; fastest measured at 16 384)
+# Points per block of a design evaluation and of :meth:`ArnoldiBasis.evaluate`. Each
+# numpy call of a block's recurrence holds the GIL between calls, so blocks of few
+# points make the channels' threads wait on each other: on a 2-core AMD EPYC, design
+# of 262 144 points with 22 functions ran 0.37 s serially and 0.45 s in two threads in
+# blocks of 4 096, 0.32 s and 0.24 s in blocks of 16 384 (the same values: a block's
+# size does not change them).
+_BLOCK = 16_384
 _SUM_BLOCK = 16_384
-# Up to this many points a block's recurrence folds its subtractions with one
-# subtract.reduce per function; above, a loop of in-place subtractions is faster.
-_FOLD_MAX = 1024
 
 
 class ArnoldiBasis:
@@ -211,32 +209,20 @@ class ArnoldiBasis:
         f = np.empty((k, b))
         f[0] = 1.0 / H[0, 0]
         s = c[0] * f[0]
-        if b <= _FOLD_MAX:
-            # Few points: the products at once, then subtract.reduce over the rows, a left
-            # fold ((v - h0 f0) - h1 f1) - ... per point: the same roundings as the loop
-            # below in one call (Thurber's 37 points, 37 functions: 1.0 ms, loop 3.8 ms).
-            buf = np.empty((k, b))
-            for i in range(1, k):
-                np.multiply(tt[self.dims[i]], f[self.parents[i]], out=buf[0])
-                np.multiply(H[:i, i, None], f[:i], out=buf[1:i + 1])
-                np.subtract.reduce(buf[:i + 1], axis=0, out=f[i])
-                f[i] /= H[i, i]
-                s = s + c[i] * f[i]
-            return s
-        # each product into one scratch vector and each result in place: the same
-        # operations as ``v -= H[j, i] * f[j]``, without a temporary per operation
-        # (a MERL table's 1.1e6 points, 22 functions: 0.28 s -> 0.17 s in blocks of
-        # _SUM_BLOCK points, 45 functions: 1.1 s -> 0.7 s)
-        tmp = np.empty(b)
+        # The products at once, then subtract.reduce over the rows (the reduced axis
+        # outermost): a left fold ((v - h0 f0) - h1 f1) - ... per point, the operations
+        # above in three calls per function instead of 2 i, each call a point where a
+        # thread takes the GIL back (a loop of one product and one subtraction per
+        # earlier function made two channels' threads wait on each other: 262 144
+        # points, 45 functions, in two threads 2.03 s -> 0.79 s; 22 functions serially
+        # 0.48 s -> 0.34 s, values equal).
+        buf = np.empty((k, b))
         for i in range(1, k):
-            v = f[i]
-            np.multiply(tt[self.dims[i]], f[self.parents[i]], out=v)
-            for j in range(i):
-                np.multiply(H[j, i], f[j], out=tmp)
-                np.subtract(v, tmp, out=v)
-            np.divide(v, H[i, i], out=v)
-            np.multiply(c[i], v, out=tmp)
-            np.add(s, tmp, out=s)
+            np.multiply(tt[self.dims[i]], f[self.parents[i]], out=buf[0])
+            np.multiply(H[:i, i, None], f[:i], out=buf[1:i + 1])
+            np.subtract.reduce(buf[:i + 1], axis=0, out=f[i])
+            f[i] /= H[i, i]
+            s = s + c[i] * f[i]
         return s
 
     def to_family(self, coef: ArrayLike) -> Array:
