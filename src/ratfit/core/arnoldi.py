@@ -134,11 +134,11 @@ class ArnoldiBasis:
         out = np.empty((k, tt.shape[1]))
         H = self.H
         out[0] = 1.0 / H[0, 0]
-        for i in range(1, k):
-            v = tt[self.dims[i]] * out[self.parents[i]]
+        for i in range(1, k):  # each step in place in its row (no temporary to copy)
+            v = out[i]
+            np.multiply(tt[self.dims[i]], out[self.parents[i]], out=v)
             v -= H[:i, i] @ out[:i]
             v /= H[i, i]
-            out[i] = v
         return out
 
     def _window_rows(self, x: ArrayLike, count: int | None, window: bool) -> tuple[Array, int]:
