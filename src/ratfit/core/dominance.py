@@ -84,6 +84,6 @@ def first_of_groups(order: ArrayLike, *keys: ArrayLike) -> NDArray[np.intp]:
     idx = np.asarray(order, dtype=np.intp)
     if idx.size == 0:
         return idx
-    _, label = groups(*(np.asarray(k)[idx] for k in keys))
-    _, first = np.unique(label, return_index=True)  # each group's first position
+    # groups' sort is stable, so each group's first element is its first position
+    first, _ = groups(*(np.asarray(k)[idx] for k in keys))
     return idx[np.sort(first)]
