@@ -203,30 +203,24 @@ def test_samples_that_never_decide_the_envelope_are_dropped_without_changing_it(
         assert envelope_from_dict({"envelope": env.to_dict() | bad}) is None
 
 
-def _floor_by_hand(theta_h, theta_d, lo, hi, t, d, factor=2.0, highlight=0.01,
-                   growth=0.0, limit=1.0):
-    """The floor one point at a time: the largest log(lo_i / factor) + min(growth
-    (g(d) - g(theta_d_i)), log(limit)), g = -log cos, over the highlight samples i
-    (hi_i >= highlight x the largest hi, lo_i > 0) with theta_h_i >= t and theta_d_i <= d,
-    d taken at the theta_d step at or below it, v_i lowered until v_i + growth
-    (g(theta_d_k) - g(theta_d_i)) is at most log(hi_k / factor) of every sample k with
-    theta_h_k <= theta_h_i and theta_d_k >= theta_d_i; FLOOR_LOG_MIN where there is none."""
+def _floor_by_hand(theta_h, theta_d, lo, hi, t, d, factor=2.0, highlight=0.01):
+    """The floor one point at a time: the largest log(lo_i / factor), lowered to
+    log(hi_k / factor) of every sample k with theta_h_k <= theta_h_i and theta_d_k >=
+    theta_d_i, over the highlight samples i (hi_i >= highlight x the largest hi, lo_i > 0)
+    with theta_h_i >= t and theta_d_i <= d, d taken at the theta_d step at or below it;
+    FLOOR_LOG_MIN where there is none."""
     th, td, lo, hi = (np.asarray(a, float) for a in (theta_h, theta_d, lo, hi))
-    g = -np.log(np.cos(td))
     bright = (hi >= highlight * hi.max()) & (lo > 0)
     v = np.full(th.size, -np.inf)
     for i in np.flatnonzero(bright):
         region = (th <= th[i]) & (td >= td[i])
-        v[i] = min(np.log(lo[i] / factor),
-                   (np.log(hi[region] / factor) - growth * (g[region] - g[i])).min())
+        v[i] = min(np.log(lo[i] / factor), np.log(hi[region] / factor).min())
     out = []
     for u, w in zip(np.atleast_1d(t), np.atleast_1d(d), strict=True):
         w = ENVELOPE_D_STEP * np.clip(np.floor(w / ENVELOPE_D_STEP), 0,
                                       round(np.pi / 2 / ENVELOPE_D_STEP)) if w >= 0 else -1.0
         near = bright & (th >= u) & (td <= w)
-        rise = np.minimum(growth * (-np.log(np.cos(w)) - g[near]), np.log(limit))
-        out.append(max(FLOOR_LOG_MIN, (v[near] + rise).max()) if near.any()
-                   else FLOOR_LOG_MIN)
+        out.append(max(FLOOR_LOG_MIN, v[near].max()) if near.any() else FLOOR_LOG_MIN)
     return np.array(out)
 
 
@@ -312,51 +306,6 @@ def test_the_floor_is_the_highlight_samples_lower_ends_nearer_mirror_and_grazing
         assert envelope_from_dict({"envelope": stated}) is None
     with pytest.raises(ValueError):
         SampleCeiling.of_samples(0, 2, th, td, hi, 0.1, 2.0, 3.0, floor=floor)
-
-
-def test_the_floor_grows_toward_grazing_up_to_its_limit() -> None:
-    """With a growth, each highlight sample's floor rises toward grazing as
-    (1 / cos theta_d)^growth, to at most ``limit`` times its value, and stays under
-    1 / factor of the upper end of every sample in its region."""
-    rng = np.random.default_rng(5)
-    th, td = rng.uniform(0, 1.4, 400), rng.uniform(0.1, 1.4, 400)
-    y = np.exp(rng.normal(0.0, 1.0, 400)) * np.exp(-4 * th + 2 * td)
-    hi = 1.4 * y
-    floor = SampleFloor.of_samples(0, 1, th, td, y, hi, 2.0, 1.5, 3.0)
-    assert (floor.growth, floor.limit) == (1.5, 3.0)
-    t, d = rng.uniform(-0.2, 1.6, 3000), rng.uniform(-0.2, 1.6, 3000)
-    by_hand = _floor_by_hand(th, td, y, hi, t, d, growth=1.5, limit=3.0)
-    np.testing.assert_allclose(floor.at2(t, d), by_hand, rtol=1e-12)
-    flat = SampleFloor.of_samples(0, 1, th, td, y, hi, 2.0)
-    # it asks more than the floor without growth somewhere, and never more than 3 x it
-    # from any one sample: at most 3 x the flat floor of the same samples' values
-    grown = floor.at2(t, d)
-    assert np.any(grown > flat.at2(t, d) + 0.5)
-    assert np.all(grown <= flat.at2(t, d) + np.log(3.0) + 1e-12)
-    # every sample stays feasible: the floor at it is under its own upper end / 2
-    assert np.all(floor.at2(th, td) <= np.log(hi / 2.0) + 1e-12)
-    # a single highlight sample: its value / 2 at its angles, 3x that far toward grazing
-    one = SampleFloor.of_samples(0, 1, [0.01], [0.5], [10.0], [11.0], 2.0, 2.0, 3.0)
-    at = np.array([0.49, 0.51, 0.7, 1.5])
-    step = ENVELOPE_D_STEP * np.floor(at / ENVELOPE_D_STEP)  # taken at the step below
-    rise = np.minimum((np.cos(0.5) / np.cos(step)) ** 2, 3.0)
-    np.testing.assert_allclose(np.exp(one.at2(np.zeros(4), at)),
-                               [np.exp(FLOOR_LOG_MIN), *(5.0 * rise[1:])], rtol=1e-12)
-    assert 5.0 < 5.0 * rise[2] < 15.0 and rise[3] == 3.0
-    # stored and read back with its growth; a file of an older floor has none
-    env = SampleCeiling.of_samples(0, 1, th, td, hi, 0.1, 2.0, 3.0, floor=floor)
-    back = envelope_from_dict({"envelope": env.to_dict()})
-    assert isinstance(back, SampleCeiling) and back.floor is not None
-    np.testing.assert_array_equal(back.floor.at2(t, d), floor.at2(t, d))
-    assert "growing toward grazing as (1 / cos theta_d)^1.5 up to 3x" in back.describe()
-    old = env.to_dict()
-    old["floor"] = {k: v for k, v in old["floor"].items() if k not in ("growth", "limit")}
-    back = envelope_from_dict({"envelope": old})
-    assert back is not None and back.floor is not None and back.floor.growth == 0.0
-    for bad in ({"growth": -1.0}, {"limit": 0.5}, {"growth": True}, {"limit": "3"}):
-        stated = env.to_dict()
-        stated["floor"] = stated["floor"] | bad
-        assert envelope_from_dict({"envelope": stated}) is None
 
 
 def test_the_rows_hold_the_floor_where_it_is_set() -> None:

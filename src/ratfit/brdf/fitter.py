@@ -179,21 +179,9 @@ LOG_LOW = 1e-3
 #: of 30-740 1/sr.
 LOG_CEILING_FACTOR = 2.0
 #: A log fit under an envelope over theta_h and theta_d is held above its highlight's
-#: floor too (:class:`~ratfit.brdf.validity.SampleFloor`): the measured value of each of
-#: those samples divided by this, nearer the mirror direction and nearer grazing than it
-#: (its segment's lower end took a channel widened to +-87 % down with it: garnet_red B).
+#: floor too (:class:`~ratfit.brdf.validity.SampleFloor`): the lower end of each of those
+#: samples divided by this, nearer the mirror direction and nearer grazing than it.
 LOG_FLOOR_FACTOR = 2.0
-#: ... and from there it grows toward grazing at this share of the fastest growth the
-#: highlight's samples show (:func:`~ratfit.brdf.validity.theta_d_growth`), up to
-#: :data:`FLOOR_GROWTH_LIMIT` times its value at the sample: a highlight brightens toward
-#: grazing (Fresnel, and 1 / cos^2 theta_d at the mirror direction), and folds fitted
-#: without the 80-degree mirror pair predicted it 10-10^6 x too dark in one channel
-#: (garnet_red B 0.46 1/sr, krylon_blue B 2.3e-5, where the data are 28 and 61 and the
-#: other channels 9-17). The limit keeps each sample's floor under the ceiling it sets
-#: itself (:data:`LOG_CEILING_FACTOR` times its upper end) with room for both rows'
-#: margins: LOG_FLOOR_FACTOR * LOG_CEILING_FACTOR / FLOOR_GROWTH_LIMIT > exp(2 x 0.05).
-FLOOR_GROWTH_SHARE = 0.5
-FLOOR_GROWTH_LIMIT = 3.0
 # The search's and the polish's rows keep p / q this far (in log: 5 %) below the ceiling
 # at their points, the check and the proof hold it to the ceiling itself: a least-squares
 # fit that wants to rise past the box's samples (a lobe's grazing tail) otherwise touches
@@ -1510,9 +1498,8 @@ class BRDFFitter(RationalFitter):
         rows: list[Envelope] = []
         proof: list[Envelope] = []
         for j in range(segments.n_channels):
-            floor = SampleFloor.of_samples(col, dcol, th, td, segments.center[:, j],
-                                           segments.hi[:, j], LOG_FLOOR_FACTOR,
-                                           FLOOR_GROWTH_SHARE * growth, FLOOR_GROWTH_LIMIT)
+            floor = SampleFloor.of_samples(col, dcol, th, td, segments.lo[:, j],
+                                           segments.hi[:, j], LOG_FLOOR_FACTOR)
             ceiling = SampleCeiling.of_samples(col, dcol, th, td, segments.hi[:, j],
                                                ENVELOPE_SLACK, LOG_CEILING_FACTOR, growth,
                                                floor=floor)

@@ -651,22 +651,17 @@ class SampleFloor:
     """A floor of a log fit over theta_h and theta_d from its highlight's samples i at
     (theta_h_i, theta_d_i) with log floors v_i: p / q >= F(t, d), with
 
-        F(t, d) = max over i with theta_h_i >= t and theta_d_i <= d of
-                  v_i + min(growth * (g(d) - g(theta_d_i)), log(limit))
+        F(t, d) = max over i with theta_h_i >= t and theta_d_i <= d of v_i
 
-    g(d) = -log cos d (:func:`grazing`; :data:`FLOOR_LOG_MIN` where no sample
-    qualifies). A highlight is no dimmer nearer the mirror direction at the same
-    incidence, and grows toward grazing at the same theta_h: the mirror of
-    :class:`SampleCeiling`'s rule, with no slack, a slower growth and at most ``limit``
-    times v_i (:data:`FLOOR_GROWTH_LIMIT`, which keeps F under the ceiling's value of the
-    same sample), so it asks less than either rule allows. Between the incidence angles
-    measured along the mirror direction, fits under the ceiling alone dipped 100-10^10 x
-    below both neighbours (mystique B to 0.009 1/sr at 75 degrees between 11.9 at 69 and
-    591 at 80; a cayman fold to 1.6e-10 at 80 degrees); without growth, folds without the
-    80-degree mirror pair predicted it channel by channel 10-10^6 x below the data
-    (garnet_red B 0.46 1/sr, krylon_blue B 2.3e-5, against 28 and 61). Each v_i is low
-    enough that F stays under 1 / factor of the upper end of every sample in its region,
-    so the samples' own segments are never in conflict with it.
+    (:data:`FLOOR_LOG_MIN` where no sample qualifies). A highlight is no dimmer nearer
+    the mirror direction at the same incidence, nor nearer grazing at the same
+    theta_h: the mirror of :class:`SampleCeiling`'s rule, with no slack and no growth,
+    so it asks less than either rule allows. Between the incidence angles measured along
+    the mirror direction, fits under the ceiling alone dipped 100-10^10 x below both
+    neighbours (mystique B to 0.009 1/sr at 75 degrees between 11.9 at 69 and 591 at 80;
+    a cayman fold to 1.6e-10 at 80 degrees). Each v_i is at most the log of 1 / factor of
+    the upper end of every sample in its region, so the samples' own segments are never
+    in conflict with it.
 
     F falls with t and rises with d; its largest value on a box is at the box's
     (smallest t, largest d) corner, which is what the proof takes. It is tabulated like
@@ -679,8 +674,6 @@ class SampleFloor:
     theta_h: Array
     theta_d: Array
     log_floor: Array
-    growth: float = 0.0
-    limit: float = 1.0
 
     def __post_init__(self) -> None:
         t = np.asarray(self.theta_h, dtype=float)
@@ -690,15 +683,11 @@ class SampleFloor:
         if (t.ndim != 1 or d.shape != t.shape or v.shape != t.shape
                 or not all(np.all(np.isfinite(a)) for a in (t, d, v))
                 or any(isinstance(c, bool) or not isinstance(c, (int, np.integer)) or c < 0
-                       for c in cols) or self.column == self.d_column
-                or not (np.isfinite(self.growth) and self.growth >= 0)
-                or not (np.isfinite(self.limit) and self.limit >= 1)):
+                       for c in cols) or self.column == self.d_column):
             raise ValueError("a sample floor needs finite theta_h, theta_d and values of "
-                             "one length, two distinct columns >= 0, a growth >= 0 and "
-                             "a limit >= 1")
+                             "one length and two distinct columns >= 0")
         for name, value in (("theta_h", t), ("theta_d", d), ("log_floor", v),
-                            ("column", int(self.column)), ("d_column", int(self.d_column)),
-                            ("growth", float(self.growth)), ("limit", float(self.limit))):
+                            ("column", int(self.column)), ("d_column", int(self.d_column))):
             object.__setattr__(self, name, value)
         levels = ENVELOPE_D_STEP * np.arange(_D_LEVELS + 1)
         ths, rank_t = np.unique(t, return_inverse=True)
@@ -706,53 +695,39 @@ class SampleFloor:
         if t.size:
             step = np.searchsorted(levels, d, side="left")  # first level at or past d
             inside = step <= _D_LEVELS
-            if self.growth == 0.0 or self.limit == 1.0:
-                np.maximum.at(table, (step[inside], rank_t[inside]), v[inside])
-                # every level at or past a sample's theta_d
-                table = np.maximum.accumulate(table, axis=0)
-            else:
-                # each sample's term at every level at or past its theta_d (it rises
-                # with the level, so the table does too)
-                rise = np.minimum(self.growth * np.maximum(
-                    0.0, grazing(levels)[:, None] - grazing(d)[None, :]),
-                    np.log(self.limit))
-                for k in range(_D_LEVELS + 1):
-                    on = inside & (step <= k)
-                    np.maximum.at(table[k], rank_t[on], v[on] + rise[k, on])
-            # every theta_h at or below its own
+            np.maximum.at(table, (step[inside], rank_t[inside]), v[inside])
+            # every level at or past a sample's theta_d; every theta_h at or below its own
+            table = np.maximum.accumulate(table, axis=0)
             table = np.maximum.accumulate(table[:, ::-1], axis=1)[:, ::-1]
         object.__setattr__(self, "_table", (ths, table))
 
     @classmethod
     def of_samples(cls, column: int, d_column: int, theta_h: ArrayLike, theta_d: ArrayLike,
-                   level: ArrayLike, hi: ArrayLike, factor: float, growth: float = 0.0,
-                   limit: float = 1.0, highlight: float = HIGHLIGHT_FRACTION) -> SampleFloor:
-        """log(``level`` / ``factor``) at each highlight sample (``hi`` at ``highlight``
-        times the largest ``hi`` or above, ``level`` > 0), lowered so that its term
-        stays under log(``hi`` / ``factor``) of every sample in its region (with the
-        growth: v_i + growth (g(theta_d_k) - g(theta_d_i)) at most that of sample k);
-        less the samples that never decide F (another has theta_h as large or larger,
-        theta_d as small or smaller and a value as large or larger)."""
+                   lo: ArrayLike, hi: ArrayLike, factor: float,
+                   highlight: float = HIGHLIGHT_FRACTION) -> SampleFloor:
+        """log(``lo`` / ``factor``) at each highlight sample (``hi`` at ``highlight``
+        times the largest ``hi`` or above, ``lo`` > 0), lowered to log(``hi`` /
+        ``factor``) of every sample in its region; less the samples that never decide F
+        (another has theta_h as large or larger, theta_d as small or smaller and a value
+        as large or larger)."""
         t = np.asarray(theta_h, dtype=float)
         d = np.asarray(theta_d, dtype=float)
-        level_a = np.asarray(level, dtype=float)
+        lo_a = np.asarray(lo, dtype=float)
         hi_a = np.asarray(hi, dtype=float)
         ok = np.isfinite(t) & np.isfinite(d) & np.isfinite(hi_a)
-        bright = ok & (hi_a >= highlight * np.max(hi_a[ok], initial=0.0)) & (level_a > 0)
-        rate = float(growth) if float(limit) > 1.0 else 0.0
-        g = grazing(d) if rate else np.zeros(d.shape)
-        cap = np.log(np.maximum(hi_a, np.finfo(float).tiny) / factor) - rate * g
+        bright = ok & (hi_a >= highlight * np.max(hi_a[ok], initial=0.0)) & (lo_a > 0)
+        cap = np.log(np.maximum(hi_a, np.finfo(float).tiny) / factor)
         # the smallest cap in each sample's region (theta_h as small or smaller, theta_d
         # as large or larger), over the distinct (theta_h, theta_d) points
         t_ok, d_ok = np.where(ok, t, np.inf), np.where(ok, d, np.inf)
         first, group = groups(t_ok, d_ok)
         point_cap = np.full(first.size, np.inf)
-        np.minimum.at(point_cap, group[ok], np.where(ok, cap, np.inf)[ok])
+        np.minimum.at(point_cap, group[ok], cap[ok])
         point_t, point_d = t_ok[first], d_ok[first]  # in order of theta_h
         upto = np.searchsorted(point_t, point_t, side="right")
         region_cap = -prefix_max(-point_d, -point_cap, upto, -point_d)
         idx = np.flatnonzero(bright)
-        v = np.minimum(np.log(level_a[idx] / factor), region_cap[group[idx]] + rate * g[idx])
+        v = np.minimum(np.log(lo_a[idx] / factor), region_cap[group[idx]])
         keep = v > FLOOR_LOG_MIN
         idx, v = idx[keep], v[keep]
         # in order of falling value, then theta_h, then rising theta_d: a sample is left
@@ -762,8 +737,7 @@ class SampleFloor:
         lead = first_of_groups(order, t[idx], d[idx])
         reach = prefix_max(d[idx[lead]], t[idx[lead]], np.arange(lead.size), d[idx[lead]])
         sel = np.sort(lead[reach < t[idx[lead]]])
-        return cls(int(column), int(d_column), t[idx[sel]], d[idx[sel]], v[sel], rate,
-                   float(limit) if rate else 1.0)
+        return cls(int(column), int(d_column), t[idx[sel]], d[idx[sel]], v[sel])
 
     def at2(self, theta_h: ArrayLike, theta_d: ArrayLike) -> Array:
         """F at each (theta_h, theta_d)."""
@@ -784,11 +758,8 @@ class SampleFloor:
         return self.at2(xa[:, self.column], xa[:, self.d_column])
 
     def describe(self) -> str:
-        grows = "" if self.growth == 0.0 or self.limit == 1.0 else (
-            f", growing toward grazing as (1 / cos theta_d)^{self.growth:.3g} up to "
-            f"{self.limit:.3g}x")
         return (f"above the floor of {self.theta_h.size} highlight samples (no dimmer "
-                f"nearer the mirror direction or nearer grazing{grows})")
+                "nearer the mirror direction or nearer grazing)")
 
     def of_pieces(self, space: PolynomialSpace) -> Callable[[Array, Array],
                                                               tuple[Array, NDArray[np.bool_]]]:
@@ -800,8 +771,7 @@ class SampleFloor:
     def to_dict(self) -> dict[str, object]:
         return {"column": self.column, "d_column": self.d_column,
                 "theta_h": self.theta_h.tolist(), "theta_d": self.theta_d.tolist(),
-                "log_floor": self.log_floor.tolist(), "growth": self.growth,
-                "limit": self.limit}
+                "log_floor": self.log_floor.tolist()}
 
     @classmethod
     def from_dict(cls, entry: object) -> SampleFloor | None:
@@ -810,16 +780,11 @@ class SampleFloor:
             return None
         try:
             col, dcol = entry["column"], entry["d_column"]
-            # (files of commits before the floor grew state neither: no growth)
-            growth, limit = entry.get("growth", 0.0), entry.get("limit", 1.0)
-            if any(isinstance(v, bool) or not isinstance(v, int) for v in (col, dcol)) or any(
-                    isinstance(v, bool) or not isinstance(v, (int, float))
-                    for v in (growth, limit)):
+            if any(isinstance(v, bool) or not isinstance(v, int) for v in (col, dcol)):
                 return None
             return cls(col, dcol, np.asarray(entry["theta_h"], dtype=float),
                        np.asarray(entry["theta_d"], dtype=float),
-                       np.asarray(entry["log_floor"], dtype=float), float(growth),
-                       float(limit))
+                       np.asarray(entry["log_floor"], dtype=float))
         except (KeyError, TypeError, ValueError):
             return None
 
