@@ -554,3 +554,67 @@ def test_mystique_stays_under_its_samples_off_the_highlight(shared_data) -> None
         assert np.all(np.exp(floor.at2(0.0, td)) >= 0.5 * lo69 * (1 - 1e-9)), j
         assert np.all(vm[:, j] >= 0.5 * lo69 * (1 - 1e-9)), j
     assert vm[:, 2].min() > 0.5  # B: 0.009 at 75 degrees before
+
+
+def test_a_fit_whose_floor_alone_is_not_proved_is_kept_under_half_the_floor(tmp_path) -> None:
+    """A channel whose fit meets its segments and is proved q > 0 and under its ceiling,
+    but not above its floor, even after the repair and the search again, is kept when the
+    floor lowered to half is proved (krylon_blue's fold without its 80-degree mirror pair
+    otherwise fell back to a frame with no envelope: B 2.3e-5 1/sr where the data say
+    61); its proof and its file state the lowered floor, which a floor too high to halve
+    does not get."""
+    from dataclasses import replace
+
+    from ratfit.brdf.fitter import FLOOR_PROOF_RELIEF, _envelope_block, save_brdf_fit
+    from ratfit.brdf.validity import prove_validity
+
+    ds = _material(300)
+    fitter, _seg, meta = fit_brdf(ds, values="log", **WIDTHS)
+    assert fitter.success_
+    res = fitter.results_[0]
+    fam = res.rational
+    env = fitter._step_ceilings[0]
+    lo, hi = np.asarray(fam.space.domain, dtype=float).T
+    rng = np.random.default_rng(1)
+    L, V = above_horizon(rng, 200_000), above_horizon(rng, 200_000)
+    pairs = np.clip(get_parametrization(fitter.parametrization)._from(L, V), lo, hi)
+    low = float(np.min(fam(pairs)))  # the least log value where pairs are evaluated
+    refuted = replace(res, success=False, status=2, message="rejected: floor",
+                      verification=replace(res.verification, verified=False))
+    failed = replace(refuted, message="rejected: floor; searched again: none")
+    for above, kept in ((0.3, True), (1.0, False)):
+        # one sample at the box's largest theta_h and at theta_d 0 sets F over the box
+        floor = SampleFloor(env.column, env.d_column, np.array([hi[env.column]]),
+                            np.array([0.0]), np.array([low + above]))
+        fitter._step_ceilings[0] = replace(env, floor=floor)
+        proof = prove_validity(fam, fitter.parametrization, keep=fitter.used_coords,
+                               values="log", ceiling=fitter._ceiling(0),
+                               envelope=fitter._step_ceilings[0])
+        assert proof.q.proved and proof.p.proved and not proof.floor.proved
+        fitter._proofs[id(fam)] = proof
+        out = fitter._under_a_lower_floor(refuted, failed, 0)
+        if not kept:  # low + 1 - log 2 is still above the fit's least value
+            assert out is failed and fitter._proofs[id(fam)] is proof
+            continue
+        assert out.success and out.status == 0 and out.rational is fam
+        assert out.verification.verified
+        assert out.message.startswith(failed.message) and "lowered to half" in out.message
+        again = fitter._proofs[id(fam)]
+        assert again.proved and again.floor.proved and again.floor.margin > 0
+        np.testing.assert_allclose(again.envelope.floor.log_floor,
+                                   [low + above - FLOOR_PROOF_RELIEF], rtol=0, atol=1e-15)
+        block = _envelope_block(fitter._envelopes, fitter._floors_lowered)
+        assert block["floor_lowered"] == {"channels": [0], "log_by": FLOOR_PROOF_RELIEF}
+        assert "floor_lowered" not in _envelope_block(fitter._envelopes)
+        # the file states the lowered floor, and it is proved again from the file
+        fitter.results_[0] = out
+        fitter.proofs_[0] = again
+        path = tmp_path / "fit.json"
+        save_brdf_fit(path, fitter.results_, meta | {"proof": [again.to_dict()]})
+        saved = load_fit(path)
+        stated = saved.extra["brdf"]["proof"][0]["envelope"]["floor"]["log_floor"]
+        assert stated == [low + above - FLOOR_PROOF_RELIEF]
+        assert reprove_saved(saved) is True
+    # a candidate that misses a segment is not kept, however its floor is proved
+    missing = replace(refuted, verification=replace(res.verification, n_violations=1))
+    assert fitter._under_a_lower_floor(missing, failed, 0) is failed
