@@ -20,7 +20,7 @@ from __future__ import annotations
 import contextlib
 import os
 import time
-from collections.abc import Iterable, Iterator, Sequence
+from collections.abc import Iterator, Sequence
 from dataclasses import dataclass, replace
 from typing import TYPE_CHECKING, Any, Self
 
@@ -168,15 +168,6 @@ RESEARCH_WORK_SHARE = 0.25
 # rows every rejection adds: cayman's R searched again up to 100 galloped to (50, 50),
 # where one split's active set reached 32 000 of 147 000 rows (minutes of DAQP a solve).
 RESEARCH_TOTAL_FACTOR = 2
-#: A channel whose every candidate meets its segments and is proved q > 0 and under its
-#: ceiling, but whose floor (:data:`LOG_FLOOR_FACTOR`) the proof cannot hold even after
-#: the repair and the search again, keeps that fit with its floor lowered by this much
-#: in log (to half its level), when that is proved; the lowered floor is what its fit
-#: file states. Without it such a channel had no fit in its frame and the whole fit fell
-#: back to ISOTROPIC_TV_TL_DPHI, which has no envelope and no floor: krylon_blue's fold
-#: without its 80-degree mirror pair (B's floor failed by 2.6e-6 of its scale at one
-#: corner) gave B 2.3e-5 1/sr there, where the data say 61.
-FLOOR_PROOF_RELIEF = float(np.log(2.0))
 # the lower end of a log segment is at least this share of its channel's smallest upper
 # end (a value of 0 is met as 1e-3 of the lowest floor: exp(p / q) cannot reach 0)
 LOG_LOW = 1e-3
@@ -623,8 +614,7 @@ def fit_brdf(ds: Dataset, *, dt: float | None = None, abs_width: AbsWidth = None
         # the local ceiling the search and the polish kept at the validity points, and
         # the proof on the whole region with proof_slack (each channel's proof entry
         # holds its samples or steps)
-        "envelope": _envelope_block(fitter.__dict__.get("_envelopes"),
-                                    fitter.__dict__.get("_floors_lowered", ())),
+        "envelope": _envelope_block(fitter.__dict__.get("_envelopes")),
     }
     sizes = fitter.__dict__.get("_sizes")
     if sizes:
@@ -1148,10 +1138,8 @@ def _coordinate_column(param: str, used_coords: Sequence[int] | None,
     return kept.index(col) if col in kept else None
 
 
-def _envelope_block(envelopes: Sequence[Envelope] | None,
-                    floors_lowered: Iterable[int] = ()) -> dict[str, Any] | None:
-    """The fit file's summary of the envelopes a fit kept (None: none), with the
-    channels whose floor was proved only lowered (:data:`FLOOR_PROOF_RELIEF`)."""
+def _envelope_block(envelopes: Sequence[Envelope] | None) -> dict[str, Any] | None:
+    """The fit file's summary of the envelopes a fit kept (None: none)."""
     if not envelopes:
         return None
     growth = getattr(envelopes[0], "growth", None)
@@ -1160,11 +1148,7 @@ def _envelope_block(envelopes: Sequence[Envelope] | None,
             "slack": ENVELOPE_SLACK, "proof_slack": ENVELOPE_PROOF_SLACK,
             **({} if growth is None else {"growth": growth}),
             "factor": LOG_CEILING_FACTOR,
-            **({"floor_factor": LOG_FLOOR_FACTOR} if floored else {}),
-            **({"floor_lowered": {"channels": sorted(lowered),
-                                  "log_by": FLOOR_PROOF_RELIEF}}
-               if (lowered := set(floors_lowered)) else {}),
-            "proved": True}
+            **({"floor_factor": LOG_FLOOR_FACTOR} if floored else {}), "proved": True}
 
 
 def nonnegative_segments(seg: Segments) -> Segments:
@@ -1355,10 +1339,7 @@ class BRDFFitter(RationalFitter):
             res = self._proved_or_searched(res, searched, seg, j)
             if (not self._full_search and not res.success and searched.rational is not None
                     and searched.success):
-                refuted = res
                 res = self._search_with_full_proof(res, seg, j)
-                if not res.success:
-                    res = self._under_a_lower_floor(refuted, res, j)
         if (self.held_out_size and prove and self.value_form == "log"
                 and not self._full_search and res.success):
             res = self._held_out_sized(res, seg, j)
@@ -1640,38 +1621,6 @@ class BRDFFitter(RationalFitter):
         return replace(res, success=False, status=2, rational=fam,
                        verification=replace(ver, verified=False),
                        message=f"{res.message}; rejected: {why}")
-
-    def _under_a_lower_floor(self, refuted: FitResult, failed: FitResult, j: int
-                             ) -> FitResult:
-        """``refuted`` (the candidate :meth:`_proved` rejected) kept when the floor was
-        all its proof missed and the floor lowered by :data:`FLOOR_PROOF_RELIEF` is
-        proved, with that envelope as its proof's; else ``failed`` (the search again's
-        answer)."""
-        from ratfit.brdf.validity import SampleCeiling, prove_validity
-
-        fam, ver = refuted.rational, refuted.verification
-        proof = self.__dict__.get("_proofs", {}).get(id(fam))
-        env = self._proof_envelope(j)
-        floor = getattr(env, "floor", None)
-        if (fam is None or ver is None or proof is None or floor is None
-                or proof.floor is None or proof.floor.proved
-                or not (proof.q.proved and proof.p.proved)
-                or ver.n_violations or not np.isfinite(ver.linf)):
-            return failed
-        assert isinstance(env, SampleCeiling)  # the only envelope with a floor
-        lowered = replace(env, floor=replace(floor,
-                                             log_floor=floor.log_floor - FLOOR_PROOF_RELIEF))
-        again = prove_validity(fam, self.parametrization, keep=self.used_coords,
-                               values=self.value_form, ceiling=self._ceiling(j),
-                               envelope=lowered)
-        if not again.proved or again.floor is None:
-            return failed
-        self.__dict__.setdefault("_proofs", {})[id(fam)] = again
-        self.__dict__.setdefault("_floors_lowered", set()).add(j)
-        return replace(refuted, success=True, status=0,
-                       verification=replace(ver, verified=True),
-                       message=f"{failed.message}; the rejected fit kept: with its floor "
-                               f"lowered to half, p - F q > 0 {again.floor.summary()}")
 
     def _points_of(self, j: int) -> list[Array]:
         """Validity points where channel ``j``'s candidates had q <= 0 or r < 0: its later
