@@ -17,11 +17,20 @@ from ratfit.brdf.fitter import (
     GROWTH_FACTORS,
     GROWTH_FOLDS,
     GROWTH_MIN_GAIN,
+    LOCAL_EXCESS_FREE,
+    LOCAL_EXCESS_TOL,
+    LOCAL_SAMPLES,
+    OFF_HIGHLIGHT,
+    BRDFFitter,
+    LocalReference,
     _padded,
     brdf_fit_of,
     fit_brdf,
+    local_excess,
 )
 from ratfit.brdf.parametrizations import get_parametrization
+from ratfit.core.bases import PolynomialSpace
+from ratfit.core.rational import RationalFunction
 from ratfit.io.data import Dataset
 
 FRAME = "RUSIN_TH_TD_SYM"
@@ -80,14 +89,26 @@ def test_a_default_fit_of_scattered_data_records_its_held_out_sizes(both):
         assert (n2, m2) == (int(np.ceil(g * n)), int(np.ceil(g * m)))
     assert rec["folds"] == GROWTH_FOLDS and rec["qp_solves"] > 0
     scores = rec["held_out_rel_rmse"]
-    best = int(np.argmin(scores))
     res = fitter.results_[0]
-    # the kept size is the best-scored one when it wins by the margin, else the smallest
-    if best > 0 and scores[best] < (1 - GROWTH_MIN_GAIN) * scores[0]:
-        assert rec["chosen"] == rec["sizes"][best] == [res.n, res.m]
-        assert "lowest held-out relative RMSE" in res.message
+    assert rec["chosen"] == [res.n, res.m]
+    # the kept size is the best-scored one that wins by the margin and stays as close
+    # to the samples off the highlight as the smallest; a better-scored size passed
+    # over was not proved (no excess recorded) or rose above its samples
+    excess = rec["local_excess"]
+    smallest = excess[str(n + m)]
+    assert 0.5 < smallest < 10
+    better = [i for i in np.argsort(scores, kind="stable")
+              if i > 0 and scores[i] < (1 - GROWTH_MIN_GAIN) * scores[0]]
+    for i in better:
+        total = str(sum(rec["sizes"][i]))
+        if rec["sizes"][i] == rec["chosen"]:
+            assert excess[total] <= max(LOCAL_EXCESS_TOL * smallest, LOCAL_EXCESS_FREE)
+            assert "lowest held-out relative RMSE" in res.message
+            break
+        assert total not in excess or excess[total] > max(LOCAL_EXCESS_TOL * smallest,
+                                                          LOCAL_EXCESS_FREE)
     else:
-        assert rec["chosen"] == [n, m] == [res.n, res.m]
+        assert rec["chosen"] == [n, m]
     # proved like any fit
     assert meta["proof"][0]["proved"] is True
 
@@ -125,9 +146,20 @@ def test_the_fit_says_which_sizes_held_out_samples_chose(both):
     note = _held_out_size_note(meta["held_out_size"], ["Y"])
     assert note.startswith(f"size: Y {sum(rec['searched'])} -> {sum(rec['chosen'])} ")
     assert "5-fold held-out relative error" in note and "--smallest-size" in note
-    kept = dict(rec, chosen=rec["searched"])
-    assert _held_out_size_note([kept, None], ["Y", "Z"]).startswith(
-        f"size: the smallest verified (Y {sum(rec['searched'])}) had the lowest")
+    # a channel that kept its searched size says why: each larger size that scored
+    # lower was not proved valid or rose above the samples near it off the highlight
+    lower = dict(rec, sizes=[[10, 10], [13, 13], [15, 15], [20, 20]], searched=[10, 10],
+                 chosen=[10, 10],
+                 held_out_rel_rmse=[0.5, 0.4, 0.3, 0.6],
+                 local_excess={"20": 2.5, "26": 11.76})
+    assert _held_out_size_note([lower, None], ["Y", "Z"]) == (
+        "size: the smallest verified kept: Y 20 (the larger sizes that scored lower: "
+        "26: 11.8x the samples near it off the highlight, against 2.5x; 30 not proved "
+        "valid); --smallest-size keeps the fewest coefficients")
+    none_lower = dict(lower, held_out_rel_rmse=[0.5, 0.495, 0.6, 0.7])
+    assert _held_out_size_note([none_lower], ["Y"]).startswith(
+        "size: the smallest verified kept: Y 20 (no larger size had a 5-fold held-out "
+        "relative error 2% lower)")
 
 
 def test_held_out_size_is_refused_where_it_means_nothing():
@@ -141,3 +173,49 @@ def test_held_out_size_is_refused_where_it_means_nothing():
         fit_brdf(ds, values="linear", held_out_size=True, time_limit=None)
     with pytest.raises(InputError, match=chooses + ".*shared denominator: drop it$"):
         fit_brdf(ds, shared_denominator=True, held_out_size=True, time_limit=None)
+
+
+def _constant_log_fit(value: float, dim: int = 3) -> RationalFunction:
+    """A fit of log values equal to log(``value``) everywhere on [0, 1]^dim."""
+    space = PolynomialSpace("legendre", [[0.0, 1.0]] * dim, max_degree=(0,) * dim)
+    return RationalFunction(space, np.array([np.log(value)]), np.array([1.0]))
+
+
+def test_local_excess_is_the_rise_over_the_largest_nearby_sample():
+    """(f + e) / (m + e) at its 99.9th percentile, e = 1e-3: a fit of 0.05 1/sr over
+    samples of 0.002 (garnet_red's G arc at twice its size) is 17x, over samples of
+    0.05 it is 1x; a point where the fit is not finite counts as infinitely far."""
+    rng = np.random.default_rng(3)
+    pts = rng.uniform(0.0, 1.0, (5000, 3))
+    rf = _constant_log_fit(0.05)
+    assert local_excess(rf, LocalReference(pts, np.full(5000, 0.002))) == pytest.approx(17.0)
+    assert local_excess(rf, LocalReference(pts, np.full(5000, 0.05))) == pytest.approx(1.0)
+    mixed = np.where(np.arange(5000) < 10, 0.002, 0.05)  # 10 of 5000 (0.2 %) far below
+    assert local_excess(rf, LocalReference(pts, mixed)) == pytest.approx(17.0)
+    mixed[:10] = 0.05
+    mixed[:4] = 0.002  # 4 of 5000: under the 99.9th percentile's reach (5 points)
+    assert local_excess(rf, LocalReference(pts, mixed)) < 17.0
+    assert np.isnan(local_excess(rf, None))
+
+
+def test_the_local_reference_is_the_largest_of_the_nearest_samples():
+    """Seeded pairs off the highlight inside the box, each with the largest value of
+    its nearest samples (coordinates scaled to the box), checked by brute force."""
+    ds = _noisy(300, 0.2)
+    x, y = np.asarray(ds.x), np.asarray(ds.y)[:, 0]
+    dom = np.stack([x.min(0), x.max(0)], axis=1)
+    fitter = BRDFFitter(parametrization=FRAME)
+    near = fitter._local_reference(dom, x, y)
+    assert near is not None and len(near.points) > 1000
+    assert np.all(near.points[:, 0] > OFF_HIGHLIGHT)
+    assert np.all((near.points >= dom[:, 0]) & (near.points <= dom[:, 1]))
+    span = dom[:, 1] - dom[:, 0]
+    for k in range(0, len(near.points), 997):
+        d = np.linalg.norm((x - near.points[k]) / span, axis=1)
+        nearest = np.argsort(d)[:LOCAL_SAMPLES]
+        assert near.nearby_max[k] == y[nearest].max()
+    # the same pairs on every call: the choice does not depend on the run
+    again = fitter._local_reference(dom, x, y)
+    assert again is not None and np.array_equal(again.points, near.points)
+    # a frame without theta_h has no such reference
+    assert BRDFFitter(parametrization="CARTESIAN")._local_reference(dom, x, y) is None

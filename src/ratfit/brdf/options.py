@@ -104,7 +104,9 @@ BRDF_OPTIONS = extend_spec(
     Option("held_out_size", "bool", None,
            "Fits of log values: after the search's smallest verified fit, polish it at "
            "larger sizes too (ratfit.brdf.fitter.GROWTH_FACTORS times n and m) and keep the "
-           "size with the lowest 5-fold held-out relative error, when proved; None: for "
+           "size with the lowest 5-fold held-out relative error, when proved and no "
+           "further above the samples near it off the highlight than the smallest; "
+           "None: for "
            "scattered measurements at ratfit's widths and sizes "
            "(ratfit.brdf.fitter.fit_brdf decides).", cli=False),
     Option("used_coords", "indices", None,

@@ -147,11 +147,13 @@ def _split_channels(values: tuple[str, ...]) -> list[str]:
                    "whose unsampled pairs a fit may otherwise fill with highlights; off "
                    "for a full MERL table.")
 @click.option("--held-out-size/--smallest-size", "held_out_size", default=None,
-              help="Fits of log values: also polish the smallest verified fit at 1.25 and "
-                   "1.5 times its n and m, and keep the size with the lowest 5-fold "
-                   "held-out relative error when it is proved valid (brdf.held_out_size in "
-                   "the fit file). Default: on for scattered measurements with no width or "
-                   "size option; --smallest-size keeps the fewest coefficients.")
+              help="Fits of log values: also polish the smallest verified fit at 1.25, "
+                   "1.5 and 2 times its n and m, and keep the size with the lowest 5-fold "
+                   "held-out relative error when it is proved valid and, off the "
+                   "highlight, rises no further above the samples near it than the "
+                   "smallest (brdf.held_out_size in the fit file). Default: on for "
+                   "scattered measurements with no width or size option; --smallest-size "
+                   "keeps the fewest coefficients.")
 @click.option("--shared-denominator", "shared", is_flag=True,
               help="One denominator q for every channel, one numerator p_c per channel: "
                    "minimises sum(n_c) + m (--m fixes q's size, --max-total bounds each "

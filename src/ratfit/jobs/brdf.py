@@ -300,7 +300,8 @@ class BRDFFitReport:
 
 
 def _held_out_size_note(sizes: list[dict[str, Any] | None], names: list[str]) -> str:
-    """Which channels a held-out score made larger than their searched size."""
+    """Which channels a held-out score made larger than their searched size, and why
+    the others kept it."""
     grown, kept = [], []
     for name, rec in zip(names, sizes, strict=True):
         if rec is None:
@@ -309,15 +310,37 @@ def _held_out_size_note(sizes: list[dict[str, Any] | None], names: list[str]) ->
         if rec["chosen"] != rec["searched"]:
             grown.append(f"{name} {searched} -> {chosen}")
         else:
-            kept.append(f"{name} {searched}")
+            kept.append(f"{name} {searched} ({_why_smallest(rec)})")
     folds = next(int(r["folds"]) for r in sizes if r is not None)
     said = (f"size: {', '.join(grown)} coefficients, chosen by {folds}-fold held-out "
-            "relative error" if grown else
-            f"size: the smallest verified ({', '.join(kept)}) had the lowest {folds}-fold "
-            "held-out relative error")
-    if grown and kept:
-        said += f" ({', '.join(kept)}: the smallest kept)"
+            "relative error" if grown else "size:")
+    if kept:
+        said += (f"{'; ' if grown else ' '}the smallest verified kept: {', '.join(kept)}")
     return said + "; --smallest-size keeps the fewest coefficients"
+
+
+def _why_smallest(rec: Mapping[str, Any]) -> str:
+    """Why a channel kept its searched size: no larger size scored lower held out, or
+    those that did were not proved valid or rose above the samples near them."""
+    from ratfit.brdf.fitter import GROWTH_MIN_GAIN
+
+    scores, sizes = rec["held_out_rel_rmse"], rec["sizes"]
+    better = [str(sum(sizes[i])) for i in np.argsort(scores, kind="stable")
+              if i > 0 and scores[i] < (1.0 - GROWTH_MIN_GAIN) * scores[0]]
+    if not better:
+        return (f"no larger size had a {rec['folds']}-fold held-out relative error "
+                f"{GROWTH_MIN_GAIN:.0%} lower")
+    excess = rec.get("local_excess", {})
+    risen = [f"{t}: {excess[t]:.3g}x" for t in better if t in excess]
+    unproved = [t for t in better if t not in excess]
+    why = []
+    if risen:
+        smallest = excess.get(str(sum(sizes[0])), float("nan"))
+        why.append(f"{', '.join(risen)} the samples near it off the highlight, against "
+                   f"{smallest:.3g}x")
+    if unproved:
+        why.append(f"{', '.join(unproved)} not proved valid")
+    return "the larger sizes that scored lower: " + "; ".join(why)
 
 
 def fit_brdf_file(request: BRDFFitRequest | str | Path) -> BRDFFitReport:
