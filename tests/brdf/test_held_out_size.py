@@ -27,6 +27,7 @@ from ratfit.brdf.fitter import (
     brdf_fit_of,
     fit_brdf,
     local_excess,
+    sizes_scored_better,
 )
 from ratfit.brdf.parametrizations import get_parametrization
 from ratfit.core.bases import PolynomialSpace
@@ -196,6 +197,30 @@ def test_local_excess_is_the_rise_over_the_largest_nearby_sample():
     mixed[:4] = 0.002  # 4 of 5000: under the 99.9th percentile's reach (5 points)
     assert local_excess(rf, LocalReference(pts, mixed)) < 17.0
     assert np.isnan(local_excess(rf, None))
+    space = rf.space
+    undefined = RationalFunction(space, np.array([0.0]), np.array([0.0]))  # 0 / 0
+    assert local_excess(undefined, LocalReference(pts, mixed)) == np.inf
+
+
+def test_a_frame_without_theta_h_records_no_measure_and_saves():
+    """In the light's and view's own angles there is no highlight to stay off: each
+    size's measure is recorded as None (a fit file's JSON allows no NaN), and the
+    held-out choice alone decides."""
+    import json
+
+    frame = "ISOTROPIC_TV_TL_DPHI"
+    rng = np.random.default_rng(0)
+    L, V = above_horizon(rng, 300), above_horizon(rng, 300)
+    y = _truth(L, V) * np.exp(rng.normal(0.0, 0.2, 300))
+    ds = Dataset(x=get_parametrization(frame)._from(L, V), y=y[:, None],
+                 output_names=("Y",), meta={"param_in": frame, "source": "noisy lobe"})
+    fitter, _seg, meta = fit_brdf(ds, values="log", held_out_size=True, dt=0.5,
+                                  abs_width=1e-3, time_limit=None)
+    assert fitter.success_
+    rec = meta["held_out_size"][0]
+    assert rec["local_excess"] and all(v is None for v in rec["local_excess"].values())
+    assert rec["chosen"] == rec["sizes"][sizes_scored_better(rec["held_out_rel_rmse"])[0]]
+    json.dumps(meta["held_out_size"], allow_nan=False)
 
 
 def test_the_local_reference_is_the_largest_of_the_nearest_samples():

@@ -217,10 +217,10 @@ ENVELOPE_PROOF_SLACK = 2 * ENVELOPE_SLACK
 #: zeros: the same function, so a feasible start), each size scored by
 #: :data:`GROWTH_FOLDS`-fold cross-validation of that polish, and the size with the
 #: lowest held-out error is kept when it beats the smallest by :data:`GROWTH_MIN_GAIN`
-#: and is proved valid like any fit. Not twice: the samples held out all lie where the
-#: others were measured (Cornell's in the plane of incidence), and mystique's R at twice
-#: its size scored 20 % better there but rose to 0.04-0.06 1/sr in a ring off that plane
-#: (its renders' diffuse part: 0.001-0.007). A larger size is therefore kept only where,
+#: and is proved valid like any fit. The samples held out all lie where the others were
+#: measured (Cornell's in the plane of incidence): mystique's R at twice its size scored
+#: 20 % better there but rose to 0.04-0.06 1/sr in a ring off that plane (its renders'
+#: diffuse part: 0.001-0.007). A larger size is therefore kept only where,
 #: off the highlight, it rises no further above the samples near it than the smallest
 #: does (:func:`local_excess`): at twice its size garnet_red's G drew an arc across the
 #: point-light render (0.05 1/sr where its samples are 0.002), and measures 11.8 there
@@ -1419,13 +1419,12 @@ class BRDFFitter(RationalFitter):
         record: dict[str, Any] = {
             "searched": [rf.n, rf.m], "sizes": [list(v) for v in sizes],
             "held_out_rel_rmse": scores, "folds": GROWTH_FOLDS, "chosen": [rf.n, rf.m],
-            "qp_solves": work.spent, "local_excess": {str(rf.n + rf.m): excess0}}
+            "qp_solves": work.spent, "local_excess": {str(rf.n + rf.m): _finite(excess0)}}
         self.__dict__.setdefault("_sizes", {})[j] = record
         told = ", ".join(f"{n + m}: {e:.4g}" for (n, m), e in zip(sizes, scores, strict=True))
         # the sizes that beat the smallest, best first; the next is tried when one's
-        # polish does not verify or is not proved
-        better = [i for i in np.argsort(scores, kind="stable")
-                  if i > 0 and scores[i] < (1.0 - GROWTH_MIN_GAIN) * scores[0]]
+        # polish does not verify, is not proved, or rises above the samples near it
+        better = sizes_scored_better(scores)
         why = []
         for i in better:
             n, m = sizes[i]
@@ -1436,7 +1435,7 @@ class BRDFFitter(RationalFitter):
                 continue
             assert grown.rational is not None  # a proved fit
             excess = local_excess(grown.rational, near)
-            record["local_excess"][str(n + m)] = excess
+            record["local_excess"][str(n + m)] = _finite(excess)
             if (near is not None and np.isfinite(excess0)
                     and not excess <= max(LOCAL_EXCESS_TOL * excess0, LOCAL_EXCESS_FREE)):
                 why.append(f"{n + m}: off the highlight {excess:.3g}x the samples near it "
@@ -2006,6 +2005,18 @@ def _relative_steps(start: RationalFunction, seg: Segments, j: int, y: Array,
     return fit, moved
 
 
+def sizes_scored_better(scores: Sequence[float]) -> list[int]:
+    """The indices of the larger sizes (all but the first, the smallest) whose held-out
+    score is at least :data:`GROWTH_MIN_GAIN` below the smallest's, best first."""
+    return [int(i) for i in np.argsort(scores, kind="stable")
+            if i > 0 and scores[i] < (1.0 - GROWTH_MIN_GAIN) * scores[0]]
+
+
+def _finite(value: float) -> float | None:
+    """``value``, or None where it is not finite (a fit file's JSON allows no NaN)."""
+    return value if np.isfinite(value) else None
+
+
 @dataclass(frozen=True)
 class LocalReference:
     """Points off the highlight in a fit's coordinates and, for each, the largest value
@@ -2026,8 +2037,10 @@ def local_excess(rf: RationalFunction, near: LocalReference | None) -> float:
     with np.errstate(all="ignore"):
         f = np.exp(np.minimum(rf(near.points), 700.0))
         ratio = (f + NOISE_FLOOR) / (near.nearby_max + NOISE_FLOOR)
-    ratio = np.where(np.isfinite(ratio), ratio, np.inf)
-    return float(np.quantile(ratio, LOCAL_QUANTILE))
+        ratio = np.where(np.isfinite(ratio), ratio, np.inf)
+        # the quantile interpolates between neighbours: between two inf it is NaN
+        q = float(np.quantile(ratio, LOCAL_QUANTILE))
+    return np.inf if np.isnan(q) else q
 
 
 def _hemisphere(rng: np.random.Generator, n: int) -> Array:

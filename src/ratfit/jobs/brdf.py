@@ -321,21 +321,21 @@ def _held_out_size_note(sizes: list[dict[str, Any] | None], names: list[str]) ->
 
 def _why_smallest(rec: Mapping[str, Any]) -> str:
     """Why a channel kept its searched size: no larger size scored lower held out, or
-    those that did were not proved valid or rose above the samples near them."""
-    from ratfit.brdf.fitter import GROWTH_MIN_GAIN
+    those that did were not proved valid or rose above the samples near them (each size
+    proved has an entry in ``local_excess``, None where the frame has no theta_h)."""
+    from ratfit.brdf.fitter import GROWTH_MIN_GAIN, sizes_scored_better
 
-    scores, sizes = rec["held_out_rel_rmse"], rec["sizes"]
-    better = [str(sum(sizes[i])) for i in np.argsort(scores, kind="stable")
-              if i > 0 and scores[i] < (1.0 - GROWTH_MIN_GAIN) * scores[0]]
+    sizes = rec["sizes"]
+    better = [str(sum(sizes[i])) for i in sizes_scored_better(rec["held_out_rel_rmse"])]
     if not better:
         return (f"no larger size had a {rec['folds']}-fold held-out relative error "
                 f"{GROWTH_MIN_GAIN:.0%} lower")
     excess = rec.get("local_excess", {})
-    risen = [f"{t}: {excess[t]:.3g}x" for t in better if t in excess]
+    risen = [f"{t}: {excess[t]:.3g}x" for t in better if excess.get(t) is not None]
     unproved = [t for t in better if t not in excess]
     why = []
     if risen:
-        smallest = excess.get(str(sum(sizes[0])), float("nan"))
+        smallest = excess.get(str(sum(sizes[0])))
         why.append(f"{', '.join(risen)} the samples near it off the highlight, against "
                    f"{smallest:.3g}x")
     if unproved:
