@@ -16,18 +16,16 @@ one of them: above 5 %, such cells alone decide a 95th percentile of relative er
 from __future__ import annotations
 
 import argparse
-import os
 from pathlib import Path
 
 import numpy as np
 from _bench import add_markdown_option, report  # benchmarks/_bench.py
+from bench_rgl import DEFAULT_DATA, hemisphere  # the pairs bench_rgl.py scores
 
 from ratfit.brdf.io import MERL_SHAPE, merl_coords, merl_from_function, merl_indices
 from ratfit.brdf.nbrdf import load_nbrdf
 from ratfit.brdf.parametrizations import _from_half_diff, get_parametrization
 
-REPO = Path(__file__).resolve().parents[1]
-DEFAULT_DATA = Path(os.environ.get("RATFIT_SHARED_DATA", REPO.parent / "shared" / "data"))
 DROP = 0.1  # a cell below this fraction of a grid neighbour's value
 
 
@@ -56,14 +54,7 @@ def lower_elevation() -> np.ndarray:
 def pair_cells(n_pairs: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """MERL cell indices of ``n_pairs`` seeded pairs, L and V uniform on the hemisphere."""
     rng = np.random.default_rng(2026)
-
-    def hemi() -> np.ndarray:
-        z = rng.uniform(0.0, 1.0, n_pairs)
-        phi = rng.uniform(0.0, 2.0 * np.pi, n_pairs)
-        s = np.sqrt(1.0 - z * z)
-        return np.stack([s * np.cos(phi), s * np.sin(phi), np.maximum(z, 1e-12)], axis=1)
-
-    L, V = hemi(), hemi()
+    L, V = hemisphere(rng, n_pairs, 0.0), hemisphere(rng, n_pairs, 0.0)
     th, td, pd = get_parametrization("RUSIN_TH_TD_PD").from_dirs(L, V).T
     return merl_indices(th, td, pd)
 
