@@ -94,6 +94,13 @@ def hemisphere(rng: np.random.Generator, n: int, zmin: float) -> np.ndarray:
     return np.stack([s * np.cos(phi), s * np.sin(phi), z], axis=1)
 
 
+def seeded_pairs(n_pairs: int, zmin: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
+    """The benchmark's pairs: L and V uniform on the cap z > ``zmin``, seed 2026 (every
+    script that scores or counts RGL pairs draws these)."""
+    rng = np.random.default_rng(2026)
+    return hemisphere(rng, n_pairs, zmin), hemisphere(rng, n_pairs, zmin)
+
+
 def errors(fit_path: Path, net, n_pairs: int) -> dict[str, np.ndarray]:
     """(2, k) median and p95 relative errors of the fit per distribution name."""
     from ratfit.brdf.fitter import load_brdf_fit
@@ -120,8 +127,7 @@ def pair_errors(model, net, n_pairs: int) -> dict[str, np.ndarray]:
     per distribution name (the same seeded pairs for every model)."""
     out = {}
     for label, zmin in (("all", 0.0), ("cos>0.1", 0.1)):
-        rng = np.random.default_rng(2026)
-        L, V = hemisphere(rng, n_pairs, zmin), hemisphere(rng, n_pairs, zmin)
+        L, V = seeded_pairs(n_pairs, zmin)
         y = net.eval_dirs(L, V)
         f = model.eval_dirs(L, V)
         rel = np.abs(f - y) / np.maximum(y, FLOOR)

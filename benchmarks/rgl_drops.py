@@ -20,7 +20,7 @@ from pathlib import Path
 
 import numpy as np
 from _bench import add_markdown_option, report  # benchmarks/_bench.py
-from bench_rgl import DEFAULT_DATA, hemisphere  # the pairs bench_rgl.py scores
+from bench_rgl import DEFAULT_DATA, seeded_pairs  # the pairs bench_rgl.py scores
 
 from ratfit.brdf.io import MERL_SHAPE, merl_coords, merl_from_function, merl_indices
 from ratfit.brdf.nbrdf import load_nbrdf
@@ -53,14 +53,15 @@ def lower_elevation() -> np.ndarray:
 
 def pair_cells(n_pairs: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """MERL cell indices of ``n_pairs`` seeded pairs, L and V uniform on the hemisphere."""
-    rng = np.random.default_rng(2026)
-    L, V = hemisphere(rng, n_pairs, 0.0), hemisphere(rng, n_pairs, 0.0)
+    L, V = seeded_pairs(n_pairs)
     th, td, pd = get_parametrization("RUSIN_TH_TD_PD").from_dirs(L, V).T
     return merl_indices(th, td, pd)
 
 
-def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+def material_options(description: str) -> tuple[argparse.Namespace, list[Path]]:
+    """The options of a script that measures the RGL tables (``--only``, ``--pairs``,
+    ``--data``, ``--markdown``) and the networks they select."""
+    ap = argparse.ArgumentParser(description=description)
     ap.add_argument("--only", nargs="*", default=None, help="material name prefixes")
     ap.add_argument("--pairs", type=int, default=100_000)
     ap.add_argument("--data", type=Path, default=DEFAULT_DATA)
@@ -69,6 +70,11 @@ def main() -> None:
     nets = sorted((args.data / "nbrdf-rgl").glob("*.npz"))
     if args.only:
         nets = [p for p in nets if any(p.stem.startswith(o) for o in args.only)]
+    return args, nets
+
+
+def main() -> None:
+    args, nets = material_options(__doc__.splitlines()[0])
     rep = report(args, __file__)
     elevation = lower_elevation()
     cells = pair_cells(args.pairs)

@@ -33,7 +33,7 @@ from pathlib import Path
 import numpy as np
 from _bench import add_markdown_option, report  # benchmarks/_bench.py
 from bench_rgl import DEFAULT_DATA, FLOOR
-from rgl_symmetry import MIRROR_K
+from rgl_symmetry import disjoint_from_mirror
 from scipy import sparse
 from scipy.optimize import linprog
 
@@ -100,11 +100,10 @@ def main() -> None:
     table = merl_from_function(load_nbrdf(args.data / "nbrdf-rgl" / f"{args.material}_rgb.npz"))
     g = table[..., j]
     w = args.width
-    mirror_lo, mirror_hi = (1 - w) * g[:, :, MIRROR_K] - FLOOR, (1 + w) * g[:, :, MIRROR_K] + FLOOR
-    with np.errstate(invalid="ignore"):
-        asym = (((1 - w) * g - FLOOR > mirror_hi) | (mirror_lo > (1 + w) * g + FLOOR)).ravel()
+    asym = disjoint_from_mirror(g, w).ravel()
     y_all = g.ravel()
-    cells = np.flatnonzero(np.isfinite(y_all) & (y_all > 0))
+    valid = np.isfinite(y_all)
+    cells = np.flatnonzero(valid & (y_all > 0))
     rng = np.random.default_rng(0)
     pick = np.sort(rng.choice(cells, size=min(args.cells, cells.size), replace=False))
     y = y_all[pick]
@@ -112,7 +111,6 @@ def main() -> None:
     coords = merl_coords()
     rows = []
     for name, x_all in frames(coords).items():
-        valid = np.isfinite(y_all)
         domain = np.stack([x_all[valid].min(axis=0), x_all[valid].max(axis=0)], axis=1)
         for d in args.degrees:
             count = comb(d + x_all.shape[1], d)

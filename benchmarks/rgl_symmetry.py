@@ -28,13 +28,10 @@ material and channel, on the network written as a MERL table and at seeded rando
 
 from __future__ import annotations
 
-import argparse
-from pathlib import Path
-
 import numpy as np
-from _bench import add_markdown_option, report  # benchmarks/_bench.py
-from bench_rgl import DEFAULT_DATA, FLOOR, hemisphere  # bench_rgl.py's pairs and errors
-from rgl_drops import lower_elevation
+from _bench import report  # benchmarks/_bench.py
+from bench_rgl import FLOOR, seeded_pairs  # bench_rgl.py's pairs and errors
+from rgl_drops import lower_elevation, material_options
 
 from ratfit.brdf.io import merl_from_function
 from ratfit.brdf.nbrdf import load_nbrdf
@@ -44,9 +41,9 @@ UP = 10.0  # degrees: cells and pairs this far above the horizon count as "up"
 MIRROR_K = (180 - np.arange(180)) % 180  # phi_d index k -> pi - phi_d
 
 
-def disjoint_from_mirror(g: np.ndarray) -> np.ndarray:
+def disjoint_from_mirror(g: np.ndarray, width: float = WIDTH) -> np.ndarray:
     """Cells whose segment [(1 - w) y - e, (1 + w) y + e] misses their mirror cell's."""
-    lo, hi = (1.0 - WIDTH) * g - FLOOR, (1.0 + WIDTH) * g + FLOOR
+    lo, hi = (1.0 - width) * g - FLOOR, (1.0 + width) * g + FLOOR
     lo_m, hi_m = lo[:, :, MIRROR_K], hi[:, :, MIRROR_K]
     with np.errstate(invalid="ignore"):
         return (lo > hi_m) | (lo_m > hi)  # NaN (no cell) compares False
@@ -65,22 +62,13 @@ def mirror_spread(g: np.ndarray, elevation: np.ndarray) -> float:
 def mirror_pairs(n_pairs: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """bench_rgl.py's seeded pairs (all of the hemisphere) and their mirror images in
     the x-z plane."""
-    rng = np.random.default_rng(2026)
-    L, V = hemisphere(rng, n_pairs, 0.0), hemisphere(rng, n_pairs, 0.0)
+    L, V = seeded_pairs(n_pairs)
     flip = np.array([1.0, -1.0, 1.0])
     return L, V, L * flip, V * flip
 
 
 def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--only", nargs="*", default=None, help="material name prefixes")
-    ap.add_argument("--pairs", type=int, default=100_000)
-    ap.add_argument("--data", type=Path, default=DEFAULT_DATA)
-    add_markdown_option(ap)
-    args = ap.parse_args()
-    nets = sorted((args.data / "nbrdf-rgl").glob("*.npz"))
-    if args.only:
-        nets = [p for p in nets if any(p.stem.startswith(o) for o in args.only)]
+    args, nets = material_options(__doc__.splitlines()[0])
     rep = report(args, __file__)
     elevation = lower_elevation()
     up = elevation > UP
