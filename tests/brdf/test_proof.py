@@ -140,7 +140,8 @@ def test_every_evaluator_gives_the_same_nonnegative_value(tmp_path: Path) -> Non
     assert get_parametrization(P).from_dirs(L[:200], V[:200])[:, 0].max() < 1e-7
 
 
-@pytest.mark.parametrize("name", ["RUSIN_TH_TD_PD", "RUSIN_TH_TD_SYM", "STARK_2D"])
+@pytest.mark.parametrize("name", ["RUSIN_TH_TD_PD", "RUSIN_TH_TD_SYM", "RUSIN_TH_TD_FOLD",
+                                  "STARK_2D"])
 def test_no_evaluated_point_lies_in_an_excluded_piece(name: str) -> None:
     """The proof leaves out pieces of the box that no pair above the horizon reaches; every
     point where a fit is evaluated (random pairs over the whole hemisphere, through
@@ -152,7 +153,8 @@ def test_no_evaluated_point_lies_in_an_excluded_piece(name: str) -> None:
     p = get_parametrization(name)
     L, V = _hemisphere(200_000, 11)
     box = {"RUSIN_TH_TD_PD": DOMAIN, "STARK_2D": np.array([[0.05, 0.95], [0.1, 0.99]]),
-           "RUSIN_TH_TD_SYM": np.array([[0.0018, 1.385], [0.15, 1.388], [-0.7, 0.9]])}[name]
+           "RUSIN_TH_TD_SYM": np.array([[0.0018, 1.385], [0.15, 1.388], [-0.7, 0.9]]),
+           "RUSIN_TH_TD_FOLD": np.array([[0.0018, 1.385], [0.15, 1.388], [-0.8, 0.95]])}[name]
     space = PolynomialSpace("legendre", box, "total")
     # BRDFFit.coords reads only the saved fit's box
     fit = BRDFFit(SimpleNamespace(space=space), p.name)  # type: ignore[arg-type]

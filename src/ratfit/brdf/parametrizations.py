@@ -27,12 +27,14 @@ from ratfit.errors import InputError
 
 __all__ = [
     "DIRECTION_TOL",
+    "FOLD_SEAM_TOL",
     "PARAMETRIZATIONS",
     "Parametrization",
     "check_dirs",
     "convert",
     "determines",
     "find_parametrization",
+    "fold_phi_d",
     "get_parametrization",
 ]
 
@@ -54,8 +56,9 @@ class Parametrization:
 
     ``invariant`` names what the coordinates determine about the pair: "full"
     (the pair itself), "isotropic" (the pair up to a rotation about the
-    normal), "symmetric" (the pair up to that rotation, the exchange of L and V and
-    a mirror: what an isotropic reciprocal BRDF depends on), "th_td" (the half and
+    normal), "reciprocal" (the pair up to that rotation and the exchange of L and V),
+    "symmetric" (up to those and a mirror: what an isotropic reciprocal BRDF depends on
+    when it is also mirror-symmetric), "th_td" (the half and
     difference elevations), "th" (the half
     elevation), "half" (the half vector), "tv_tl" (the two elevations).
     ``bounds`` are the natural ranges of the coordinates, (dim, 2).
@@ -295,6 +298,35 @@ def _sym_to(c: Array) -> tuple[Array, Array]:
     return _nan_rows(bad, L, V)
 
 
+def _fold_from(L: Array, V: Array) -> Array:
+    th, _, td, pd = _rusin(L, V)
+    return _stack(th, td, np.sin(th) * np.cos(fold_phi_d(pd)))
+
+
+#: Folded phi_d this close to pi counts as 0 (:func:`fold_phi_d`): rounding decides
+#: which side of the fold an in-plane pair lands on, and the pair's exchange the other.
+FOLD_SEAM_TOL = 1e-12
+
+
+def fold_phi_d(pd: ArrayLike) -> Array:
+    """phi_d folded into [0, pi) as MERL's lookup folds it (phi_d < 0 moves up by pi),
+    with the fold's two sides made one: an in-plane pair (phi_d = 0 or pi up to rounding)
+    and its exchange (phi_d + pi) both get 0, so a function of the folded angle is
+    reciprocal there too, and every evaluator (numpy, the exported C) agrees."""
+    p = np.asarray(pd, dtype=float)
+    w = np.where(p < 0.0, p + np.pi, p)
+    return np.where(w >= np.pi - FOLD_SEAM_TOL, 0.0, w)
+
+
+def _fold_to(c: Array) -> tuple[Array, Array]:
+    s = np.sin(c[:, 0])
+    with np.errstate(divide="ignore", invalid="ignore"):
+        cp = np.where(s > 0, c[:, 2] / np.where(s > 0, s, 1.0), 0.0)
+    bad = np.abs(c[:, 2]) > np.abs(s) * (1.0 + 1e-12) + 1e-15  # |u| <= sin(theta_h)
+    L, V = _from_half_diff(c[:, 0], np.zeros(len(c)), c[:, 1], np.arccos(np.clip(cp, -1.0, 1.0)))
+    return _nan_rows(bad, L, V)
+
+
 def _c3_from(L: Array, V: Array) -> Array:
     th, _, td, pd = _rusin(L, V)
     return _stack(np.cos(th), np.cos(td), pd)
@@ -483,6 +515,14 @@ _ALL = (
        "of these is reciprocal (phi_d -> phi_d + pi), mirror-symmetric (phi_d -> -phi_d) "
        "and independent of phi_d at the mirror direction theta_h = 0; canonical phi_d in "
        "[0, pi/2]."),
+    _p("RUSIN_TH_TD_FOLD", ("theta_h", "theta_d", "sin_theta_h_cos_phi_d"), "reciprocal",
+       ((0, _HALF), (0, _HALF), (-1, 1)), _fold_from, _fold_to,
+       "Rusinkiewicz angles with reciprocity and isotropy at the mirror direction built in, "
+       "but not mirror symmetry (ratfit's own name): theta_h, theta_d and "
+       "sin(theta_h) cos(phi_d), phi_d folded into [0, pi) as a MERL table folds it. Any "
+       "function of these is reciprocal (phi_d -> phi_d + pi) and independent of phi_d at "
+       "theta_h = 0, and may differ between phi_d and -phi_d, as RGL's measured tables do; "
+       "it jumps where a MERL table does, at the fold phi_d = 0 / pi."),
     _p("COS_TH_TD_PD", ("cos_theta_h", "cos_theta_d", "phi_d"), "isotropic",
        ((0, 1), (0, 1), (-_PI, _PI)), _c3_from, _c3_to,
        "Cosine variant of RUSIN_TH_TD_PD (ratfit's own name; ALTA has only COS_TH_TD)."),
@@ -533,8 +573,9 @@ PARAMETRIZATIONS: dict[str, Parametrization] = {p.name: p for p in _ALL}
 # What each invariant determines (for round trips: src -> dst -> src is exact
 # when dst determines src's invariant).
 _DETERMINES = {
-    "full": {"full", "isotropic", "symmetric", "th_td", "th", "half", "tv_tl"},
-    "isotropic": {"isotropic", "symmetric", "th_td", "th", "tv_tl"},
+    "full": {"full", "isotropic", "reciprocal", "symmetric", "th_td", "th", "half", "tv_tl"},
+    "isotropic": {"isotropic", "reciprocal", "symmetric", "th_td", "th", "tv_tl"},
+    "reciprocal": {"reciprocal", "symmetric", "th_td", "th"},
     "symmetric": {"symmetric", "th_td", "th"},
     "th_td": {"th_td", "th"},
     "half": {"half", "th"},

@@ -1035,6 +1035,30 @@ def _sym_excluder(space: PolynomialSpace) -> Callable[[Array, Array], NDArray[np
     return exclude
 
 
+def _fold_excluder(space: PolynomialSpace) -> Callable[[Array, Array], NDArray[np.bool_]]:
+    """Pieces of a RUSIN_TH_TD_FOLD box (theta_h, theta_d, u = sin theta_h cos phi_d) that
+    no clipped valid pair reaches: either |u| > sin theta_h everywhere on the piece
+    (coordinates of no pair), or the pair is below the horizon everywhere: with
+    sin theta_h |cos phi_d| = |u|, g = cos th cos td - sin td |u| >= 0 for valid pairs, and
+    g falls with th, td and |u|. A piece on a face also holds the clipped images of the
+    pairs beyond it: its range extends there to the end of that coordinate's range."""
+
+    def exclude(lo: Array, hi: Array) -> NDArray[np.bool_]:
+        a, b = space.from_window(lo), space.from_window(hi)
+        low_face, high_face = lo <= -1.0, hi >= 1.0
+        th0 = np.clip(np.where(low_face[:, 0], 0.0, a[:, 0]), 0.0, _HALF)
+        th1 = np.clip(np.where(high_face[:, 0], _HALF, b[:, 0]), 0.0, _HALF)
+        td0 = np.clip(np.where(low_face[:, 1], 0.0, a[:, 1]), 0.0, _HALF)
+        u0 = np.where(low_face[:, 2], -1.0, a[:, 2])
+        u1 = np.where(high_face[:, 2], 1.0, b[:, 2])
+        min_abs_u = np.where((u0 <= 0) & (u1 >= 0), 0.0, np.minimum(np.abs(u0), np.abs(u1)))
+        no_pair = min_abs_u > np.sin(th1) * (1 + 1e-9) + 1e-15
+        g = np.cos(th0) * np.cos(td0) - np.sin(td0) * min_abs_u
+        return no_pair | (g < -1e-9)
+
+    return exclude
+
+
 def _stark_excluder(space: PolynomialSpace) -> Callable[[Array, Array], NDArray[np.bool_]]:
     """Pieces of a STARK_2D box (hp, b) that no clipped valid pair reaches: valid pairs
     have hp^2 + b^2 <= 1; a piece on a lower face also holds the images of smaller values
@@ -1049,6 +1073,7 @@ def _stark_excluder(space: PolynomialSpace) -> Callable[[Array, Array], NDArray[
 
 
 _EXCLUDERS = {"RUSIN_TH_TD_PD": _rusin_excluder, "RUSIN_TH_TD_SYM": _sym_excluder,
+              "RUSIN_TH_TD_FOLD": _fold_excluder,
               "STARK_2D": _stark_excluder}
 
 

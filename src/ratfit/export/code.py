@@ -32,6 +32,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from ratfit._atomic import atomic_open
+from ratfit.brdf.parametrizations import FOLD_SEAM_TOL
 from ratfit.errors import AccuracyWarning, InputError, RatfitError
 from ratfit.io.fitfile import SavedFit
 
@@ -554,6 +555,7 @@ _PARAM_CODE: dict[str, tuple[list[tuple[str, str]], list[str]]] = {
     "RUSIN_TH_TD_PD": (_RUSIN, ["th", "td", "pd"]),
     "COS_TH_TD_PD": (_RUSIN, ["rf_cos(th)", "rf_cos(td)", "pd"]),
     "RUSIN_TH_TD_SYM": (_RUSIN, ["th", "td", "rf_sin(th) * rf_sin(th) * rf_cos(2.0 * pd)"]),
+    "RUSIN_TH_TD_FOLD": (_RUSIN, ["th", "td", "rf_sin(th) * rf_cos(rf_fold_up(pd))"]),
     "ISOTROPIC_TV_TL_DPHI": (_ISO, ["tv", "tl", "dphi"]),
     "ISOTROPIC_TL_TV_PROJ_DPHI": (_ISO, ["tl", "tv * rf_cos(dphi)", "tv * rf_sin(dphi)"]),
     "RETRO_TL_TVL_PROJ_DPHI": (_RETRO, ["tl", "tvl * rf_cos(phi)", "tvl * rf_sin(phi)"]),
@@ -590,6 +592,11 @@ static inline double rf_fold(double a)
 {{
     double w = fmod(a, {_PI});
     return w < 0.0 ? w + {_PI} : w;
+}}
+static inline double rf_fold_up(double a)
+{{
+    double w = a < 0.0 ? a + {_PI} : a;
+    return w >= {_PI} - {FOLD_SEAM_TOL!r} ? 0.0 : w;
 }}""",
     "glsl": f"""float rf_max(float a, float b) {{ return max(a, b); }}
 float rf_sqrt(float a) {{ return sqrt(max(a, 0.0)); }}
@@ -602,7 +609,12 @@ float rf_wrap(float a)
     float w = mod(a + {_PI}, 2.0 * {_PI}) - {_PI};
     return w == -{_PI} ? {_PI} : w;
 }}
-float rf_fold(float a) {{ return mod(a, {_PI}); }}""",
+float rf_fold(float a) {{ return mod(a, {_PI}); }}
+float rf_fold_up(float a)
+{{
+    float w = a < 0.0 ? a + {_PI} : a;
+    return w >= {_PI} - {FOLD_SEAM_TOL!r} ? 0.0 : w;
+}}""",
     "python": f"""def rf_max(a, b):
     return a if a > b else b
 
@@ -627,7 +639,12 @@ def rf_wrap(a):
 
 def rf_fold(a):
     w = math.fmod(a, {_PI})
-    return w + {_PI} if w < 0.0 else w""",
+    return w + {_PI} if w < 0.0 else w
+
+
+def rf_fold_up(a):
+    w = a + {_PI} if a < 0.0 else a
+    return 0.0 if w >= {_PI} - {FOLD_SEAM_TOL!r} else w""",
 }
 
 
