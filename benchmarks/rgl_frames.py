@@ -17,7 +17,10 @@ function can hold. Frames:
 - reciprocal 4-D: (theta_h, theta_d, sin^2(theta_h) cos(2 phi_d), sin^2(theta_h)
   sin(2 phi_d)) (reciprocal, no phi_d at theta_h = 0, not mirror-symmetric);
 - MERL's axes: (theta_h, theta_d, phi_d), phi_d in [0, pi) as the table stores it
-  (reciprocal by the fold; neither of the other two).
+  (reciprocal by the fold; neither of the other two);
+- fold: ratfit's RUSIN_TH_TD_FOLD, (theta_h, theta_d, sin(theta_h) cos(phi_d)), phi_d
+  folded as the table folds it (reciprocal, no phi_d at theta_h = 0, not
+  mirror-symmetric; 3-D).
 
     python benchmarks/rgl_frames.py [--material satin_rosaline] [--channel G]
         [--cells 5000] [--width 0.22] [--degrees 5 6 7] [--markdown [PATH]]
@@ -39,6 +42,7 @@ from scipy.optimize import linprog
 
 from ratfit.brdf.io import merl_coords, merl_from_function
 from ratfit.brdf.nbrdf import load_nbrdf
+from ratfit.brdf.parametrizations import fold_phi_d
 from ratfit.core.bases import PolynomialSpace
 
 BOUND = 1e3  # |coefficient| bound: keeps the LP bounded and its solver in range
@@ -53,6 +57,7 @@ def frames(c: np.ndarray) -> dict[str, np.ndarray]:
         "cos 2phi_d": np.stack([th, td, np.cos(2 * pd)], axis=1),
         "reciprocal 4-D": np.stack([th, td, s2 * np.cos(2 * pd), s2 * np.sin(2 * pd)], axis=1),
         "MERL's axes": np.stack([th, td, pd], axis=1),
+        "fold": np.stack([th, td, np.sin(th) * np.cos(fold_phi_d(pd))], axis=1),
     }
 
 
