@@ -10,7 +10,7 @@ import json
 from pathlib import Path
 
 import numpy as np
-from conftest import exported_brdf_in_c
+from conftest import above_horizon, exported_brdf_in_c
 
 from ratfit.brdf.fitter import BRDFFitter, load_brdf_fit
 from ratfit.brdf.parametrizations import get_parametrization
@@ -33,13 +33,9 @@ def _truth(c: np.ndarray) -> np.ndarray:
 
 
 def _pairs(n: int, seed: int) -> tuple[np.ndarray, np.ndarray]:
+    """Uniform random pairs over the whole hemisphere, grazing included."""
     rng = np.random.default_rng(seed)
-    out = []
-    for _ in range(2):
-        ct, ph = rng.uniform(0.0, 1.0, n), rng.uniform(-np.pi, np.pi, n)
-        st = np.sqrt(1 - ct**2)
-        out.append(np.stack([st * np.cos(ph), st * np.sin(ph), ct], 1))
-    return out[0], out[1]
+    return above_horizon(rng, n, 0.0), above_horizon(rng, n, 0.0)
 
 
 def _fit_file(tmp_path: Path) -> Path:

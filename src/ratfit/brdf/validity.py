@@ -1005,6 +1005,23 @@ def _rusin_excluder(space: PolynomialSpace) -> Callable[[Array, Array], NDArray[
     return exclude
 
 
+def _half_vector_piece(space: PolynomialSpace, lo: Array, hi: Array
+                       ) -> tuple[Array, Array, Array, Array, Array]:
+    """Of pieces (window corners ``lo``, ``hi``) of a (theta_h, theta_d, c) box whose third
+    coordinate has the natural range [-1, 1]: the smallest and largest theta_h, the
+    smallest theta_d, the smallest c and the smallest |c| over the piece and the clipped
+    images it holds (a piece on a face reaches to the end of that coordinate's range)."""
+    a, b = space.from_window(lo), space.from_window(hi)
+    low_face, high_face = lo <= -1.0, hi >= 1.0
+    th0 = np.clip(np.where(low_face[:, 0], 0.0, a[:, 0]), 0.0, _HALF)
+    th1 = np.clip(np.where(high_face[:, 0], _HALF, b[:, 0]), 0.0, _HALF)
+    td0 = np.clip(np.where(low_face[:, 1], 0.0, a[:, 1]), 0.0, _HALF)
+    c0 = np.where(low_face[:, 2], -1.0, a[:, 2])
+    c1 = np.where(high_face[:, 2], 1.0, b[:, 2])
+    min_abs = np.where((c0 <= 0) & (c1 >= 0), 0.0, np.minimum(np.abs(c0), np.abs(c1)))
+    return th0, th1, td0, c0, min_abs
+
+
 def _sym_excluder(space: PolynomialSpace) -> Callable[[Array, Array], NDArray[np.bool_]]:
     """Pieces of a RUSIN_TH_TD_SYM box (theta_h, theta_d, s = sin^2 theta_h cos 2 phi_d)
     that no clipped valid pair reaches: either |s| > sin^2 theta_h everywhere on the piece
@@ -1014,14 +1031,7 @@ def _sym_excluder(space: PolynomialSpace) -> Callable[[Array, Array], NDArray[np
     range extends there to the end of that coordinate's natural range."""
 
     def exclude(lo: Array, hi: Array) -> NDArray[np.bool_]:
-        a, b = space.from_window(lo), space.from_window(hi)
-        low_face, high_face = lo <= -1.0, hi >= 1.0
-        th0 = np.clip(np.where(low_face[:, 0], 0.0, a[:, 0]), 0.0, _HALF)
-        th1 = np.clip(np.where(high_face[:, 0], _HALF, b[:, 0]), 0.0, _HALF)
-        td0 = np.clip(np.where(low_face[:, 1], 0.0, a[:, 1]), 0.0, _HALF)
-        s0 = np.where(low_face[:, 2], -1.0, a[:, 2])
-        s1 = np.where(high_face[:, 2], 1.0, b[:, 2])
-        min_abs_s = np.where((s0 <= 0) & (s1 >= 0), 0.0, np.minimum(np.abs(s0), np.abs(s1)))
+        th0, th1, td0, s0, min_abs_s = _half_vector_piece(space, lo, hi)
         sin0, sin1 = np.sin(th0) ** 2, np.sin(th1) ** 2
         no_pair = min_abs_s > sin1 * (1 + 1e-9) + 1e-15
         with np.errstate(divide="ignore", invalid="ignore"):
@@ -1044,14 +1054,7 @@ def _fold_excluder(space: PolynomialSpace) -> Callable[[Array, Array], NDArray[n
     pairs beyond it: its range extends there to the end of that coordinate's range."""
 
     def exclude(lo: Array, hi: Array) -> NDArray[np.bool_]:
-        a, b = space.from_window(lo), space.from_window(hi)
-        low_face, high_face = lo <= -1.0, hi >= 1.0
-        th0 = np.clip(np.where(low_face[:, 0], 0.0, a[:, 0]), 0.0, _HALF)
-        th1 = np.clip(np.where(high_face[:, 0], _HALF, b[:, 0]), 0.0, _HALF)
-        td0 = np.clip(np.where(low_face[:, 1], 0.0, a[:, 1]), 0.0, _HALF)
-        u0 = np.where(low_face[:, 2], -1.0, a[:, 2])
-        u1 = np.where(high_face[:, 2], 1.0, b[:, 2])
-        min_abs_u = np.where((u0 <= 0) & (u1 >= 0), 0.0, np.minimum(np.abs(u0), np.abs(u1)))
+        th0, th1, td0, _, min_abs_u = _half_vector_piece(space, lo, hi)
         no_pair = min_abs_u > np.sin(th1) * (1 + 1e-9) + 1e-15
         g = np.cos(th0) * np.cos(td0) - np.sin(td0) * min_abs_u
         return no_pair | (g < -1e-9)
