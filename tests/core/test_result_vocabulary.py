@@ -8,6 +8,7 @@ import dataclasses
 import numpy as np
 import pytest
 
+import ratfit
 from ratfit import PolynomialSpace, RationalFunction, Segments, verify
 from ratfit.batch.runner import BatchSummary
 from ratfit.brdf.albedo import AlbedoResult
@@ -41,6 +42,28 @@ def test_verification_words_agree() -> None:
     assert pole.success is False and pole.poles_in_domain == 1
     assert "1 pole(s) in the domain" in pole.message
     assert "segment(s) missed" in pole.message  # 1/t is far from 1 at most points
+
+
+def test_a_rejected_candidate_says_why() -> None:
+    """A candidate that meets every segment but that the fitter's own check rejects (a
+    BRDF fit with q <= 0 between the samples) is status 2, and the message gives the
+    check's reason rather than "misses 0 segment(s)"."""
+    from ratfit.fitting.search import verify_channel
+
+    def strict(rf: RationalFunction, seg: Segments, j: int) -> Verification:
+        return dataclasses.replace(verify_channel(rf, seg, j), verified=False,
+                                   rejected_by="q <= 0 at a test point")
+
+    class Strict(ratfit.RationalFitter):
+        def search_parts(self, space, seg):  # type: ignore[no-untyped-def]
+            return dataclasses.replace(super().search_parts(space, seg), verifier=strict)
+
+    x = np.linspace(-1, 1, 40)
+    r = Strict(n=2, m=2).fit(Segments.from_relative(x, 1 / (2 + x), 0.01)).results_[0]
+    assert r.status == 2 and not r.success
+    assert r.verification is not None and r.verification.n_violations == 0
+    assert r.message.endswith("q <= 0 at a test point"), r.message
+    assert "misses" not in r.message
 
 
 def test_albedo_and_batch_words_agree(tmp_path) -> None:

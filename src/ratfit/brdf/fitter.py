@@ -1959,8 +1959,12 @@ class BRDFFitter(RationalFitter):
                 at_samples = bool(np.all(rf(seg.x) >= 0))
         ok = (chk.valid and at_samples and ver.poles_in_domain == 0
               and not ver.denominator_sign_changes)
+        why = [f"validity {chk.summary()}"] if not chk.valid else []
+        if not at_samples:
+            why.append("a negative value at a sample")
         return replace(ver, verified=ok,
-                       denominator_sign_changes=ver.denominator_sign_changes or chk.min_q <= 0)
+                       denominator_sign_changes=ver.denominator_sign_changes or chk.min_q <= 0,
+                       rejected_by="; ".join(why))
 
 
 def _relative_sq(g: Array, y: Array) -> float:

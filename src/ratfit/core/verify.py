@@ -7,7 +7,7 @@ violation of infinite size, never as satisfied.
 
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, field
 
 import numpy as np
 from numpy.typing import NDArray
@@ -37,6 +37,9 @@ class Verification:
     n_violations, poles_in_domain : int
     linf, max_rel_error : float
         max |r - y| and max |r - y| / |y| (y != 0).
+    rejected_by : str
+        What a caller's own check found against the fit ("" if nothing): a BRDF
+        fit can meet every segment and still have q <= 0 between the samples.
 
     Examples
     --------
@@ -62,6 +65,9 @@ class Verification:
     l2: float  # RMSE of r - y
     max_rel_error: float  # max |r - y| / |y| over points with y != 0
     n_points: int
+    #: What else rejected the fit, in words, where a caller's own check did (a BRDF
+    #: fit's q <= 0 or negative value between the samples); "" where none did.
+    rejected_by: str = field(default="", kw_only=True)
 
     @property
     def success(self) -> bool:
@@ -81,6 +87,8 @@ class Verification:
             why.append(f"{self.poles_in_domain} pole(s) in the domain")
         if self.denominator_sign_changes and not self.poles_in_domain:
             why.append("the denominator changes sign in the domain")
+        if self.rejected_by:
+            why.append(self.rejected_by)
         return "; ".join(why) or "not verified"
 
     def to_dict(self) -> dict:

@@ -1226,11 +1226,10 @@ class SearchEngine:
             att, rf, ver = self._closest()
             if ver is not None:
                 status = 2
-                msg = (
-                    f"{STATUS_MESSAGES[2]}: best candidate (n={att.n}, m={att.m}) misses "
-                    f"{ver.n_violations} segment(s) by up to {ver.max_violation:.3g}, "
-                    f"{ver.poles_in_domain} pole(s) in the domain"
-                )
+                # why it failed, in the verifier's words: a candidate that meets every
+                # segment can still fail (a BRDF fit's q <= 0 between the samples)
+                msg = (f"{STATUS_MESSAGES[2]}: best candidate (n={att.n}, m={att.m}): "
+                       f"{ver.message}")
             else:
                 status = 1
                 span = f"total {lo}" if lo == hi else f"totals {lo}..{hi}"
