@@ -57,7 +57,7 @@ def frames(c: np.ndarray) -> dict[str, np.ndarray]:
         "cos 2phi_d": np.stack([th, td, np.cos(2 * pd)], axis=1),
         "reciprocal 4-D": np.stack([th, td, s2 * np.cos(2 * pd), s2 * np.sin(2 * pd)], axis=1),
         "MERL's axes": np.stack([th, td, pd], axis=1),
-        "fold": np.stack([th, td, np.sin(th) * np.cos(fold_phi_d(pd))], axis=1),
+        "fold": np.stack([th, td, np.sin(th) * np.cos(fold_phi_d(pd, th, td))], axis=1),
     }
 
 

@@ -36,7 +36,9 @@ from ratfit.brdf.options import (
 from ratfit.brdf.parametrizations import (
     check_dirs,
     find_parametrization,
+    fold_phi_d,
     get_parametrization,
+    reciprocal_order,
 )
 from ratfit.core.bases import PolynomialSpace
 from ratfit.core.options import DEFAULT_MAX_TOTAL, DEFAULT_TIME_LIMIT
@@ -2199,7 +2201,7 @@ class BRDFFit:
         c = coords
         if self.fold_phi_d:
             c = c.copy()
-            c[:, 2] = np.mod(c[:, 2], np.pi)
+            c[:, 2] = fold_phi_d(c[:, 2], c[:, 0], c[:, 1])
         if self.dropped:
             c = np.delete(c, list(self.dropped), axis=1)
         dom = np.asarray(self.saved.space.domain, dtype=float)
@@ -2234,11 +2236,16 @@ class BRDFFit:
         ISOTROPIC_TV_TL_DPHI, whose box holds delta_phi >= 0 only, had a seam at
         delta_phi = 0 when the exchanged pair came first). The validity proof
         (:func:`ratfit.brdf.validity.prove_validity`) covers every point of the box
-        these reach. Also returns which rows needed the clip.
+        these reach. A folded fit (RUSIN_TH_TD_FOLD, or a MERL table's phi_d folded into
+        [0, pi)) takes the pair in :func:`~ratfit.brdf.parametrizations.reciprocal_order`
+        first, so (L, V) and (V, L) are one computation. Also returns which rows needed
+        the clip.
         """
         p = get_parametrization(self.parametrization)
         dom = np.asarray(self.saved.space.domain, dtype=float)
         la, va = check_dirs(L, V)
+        if p.name == "RUSIN_TH_TD_FOLD" or self.fold_phi_d:
+            la, va = reciprocal_order(la, va)
         cols = np.setdiff1d(np.arange(p.dim), self.dropped)
         flip = np.array([1.0, -1.0, 1.0])
         cands = [(la, va), (va, la)] if p.invariant == "full" else \
@@ -2248,7 +2255,7 @@ class BRDFFit:
             for a, b in cands:
                 c = p._from(a, b)
                 if self.fold_phi_d:
-                    c[:, 2] = np.mod(c[:, 2], np.pi)
+                    c[:, 2] = fold_phi_d(c[:, 2], c[:, 0], c[:, 1])
                 cu = c[:, cols]
                 gap = np.sum(np.maximum(dom[:, 0] - cu, 0.0) + np.maximum(cu - dom[:, 1], 0.0),
                              axis=1)

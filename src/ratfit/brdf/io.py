@@ -26,7 +26,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from ratfit._atomic import atomic_open
-from ratfit.brdf.parametrizations import PARAMETRIZATIONS, get_parametrization
+from ratfit.brdf.parametrizations import PARAMETRIZATIONS, fold_phi_d, get_parametrization
 from ratfit.errors import FileFormatError, InputError
 from ratfit.io.data import Dataset, read_data
 
@@ -619,7 +619,7 @@ def samples_dataset(
         meta["fold_phi_d"] = False
     if meta.get("fold_phi_d") and target == "RUSIN_TH_TD_PD":
         coords = coords.copy()
-        coords[:, 2] = np.mod(coords[:, 2], np.pi)
+        coords[:, 2] = fold_phi_d(coords[:, 2], coords[:, 0], coords[:, 1])
     meta["param_in"] = target
     meta["source"] = src
     p = PARAMETRIZATIONS.get(target)

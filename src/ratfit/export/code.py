@@ -39,6 +39,11 @@ from ratfit.io.fitfile import SavedFit
 __all__ = ["LANGS", "ChannelForm", "ExportResult", "FormCheck", "UnverifiedExport", "check_forms",
            "eval_forms", "export_fit", "export_source", "plan_forms"]
 
+#: :data:`~ratfit.brdf.parametrizations.FOLD_SEAM_TOL` in single precision (GLSL):
+#: there |D_y| sin(theta_h) of an in-plane pair is ~1e-7 after rounding, not ~1e-15.
+FOLD_SEAM_TOL_F32 = 1e-5
+
+
 Array = NDArray[np.float64]
 LANGS = ("c", "glsl", "python")
 FORMS = ("auto", "horner", "clenshaw", "recurrence")
@@ -555,7 +560,7 @@ _PARAM_CODE: dict[str, tuple[list[tuple[str, str]], list[str]]] = {
     "RUSIN_TH_TD_PD": (_RUSIN, ["th", "td", "pd"]),
     "COS_TH_TD_PD": (_RUSIN, ["rf_cos(th)", "rf_cos(td)", "pd"]),
     "RUSIN_TH_TD_SYM": (_RUSIN, ["th", "td", "rf_sin(th) * rf_sin(th) * rf_cos(2.0 * pd)"]),
-    "RUSIN_TH_TD_FOLD": (_RUSIN, ["th", "td", "rf_sin(th) * rf_cos(rf_fold_up(pd))"]),
+    "RUSIN_TH_TD_FOLD": (_RUSIN, ["th", "td", "rf_sin(th) * rf_cos(rf_fold(pd, th, td))"]),
     "ISOTROPIC_TV_TL_DPHI": (_ISO, ["tv", "tl", "dphi"]),
     "ISOTROPIC_TL_TV_PROJ_DPHI": (_ISO, ["tl", "tv * rf_cos(dphi)", "tv * rf_sin(dphi)"]),
     "RETRO_TL_TVL_PROJ_DPHI": (_RETRO, ["tl", "tvl * rf_cos(phi)", "tvl * rf_sin(phi)"]),
@@ -588,15 +593,12 @@ static inline double rf_wrap(double a)
     w -= {_PI};
     return w == -{_PI} ? {_PI} : w;
 }}
-static inline double rf_fold(double a)
+static inline double rf_fold(double a, double th, double td)
 {{
     double w = fmod(a, {_PI});
-    return w < 0.0 ? w + {_PI} : w;
-}}
-static inline double rf_fold_up(double a)
-{{
-    double w = a < 0.0 ? a + {_PI} : a;
-    return w >= {_PI} - {FOLD_SEAM_TOL!r} ? 0.0 : w;
+    if (w < 0.0) w += {_PI};
+    double dy = fabs(sin(td) * sin(w) * sin(th));
+    return (w >= {_PI} || (w > 0.5 * {_PI} && dy <= {FOLD_SEAM_TOL!r})) ? 0.0 : w;
 }}""",
     "glsl": f"""float rf_max(float a, float b) {{ return max(a, b); }}
 float rf_sqrt(float a) {{ return sqrt(max(a, 0.0)); }}
@@ -609,11 +611,11 @@ float rf_wrap(float a)
     float w = mod(a + {_PI}, 2.0 * {_PI}) - {_PI};
     return w == -{_PI} ? {_PI} : w;
 }}
-float rf_fold(float a) {{ return mod(a, {_PI}); }}
-float rf_fold_up(float a)
+float rf_fold(float a, float th, float td)
 {{
-    float w = a < 0.0 ? a + {_PI} : a;
-    return w >= {_PI} - {FOLD_SEAM_TOL!r} ? 0.0 : w;
+    float w = mod(a, {_PI});
+    float dy = abs(sin(td) * sin(w) * sin(th));
+    return (w >= {_PI} || (w > 0.5 * {_PI} && dy <= {FOLD_SEAM_TOL_F32!r})) ? 0.0 : w;
 }}""",
     "python": f"""def rf_max(a, b):
     return a if a > b else b
@@ -637,14 +639,12 @@ def rf_wrap(a):
     return {_PI} if w == -{_PI} else w
 
 
-def rf_fold(a):
+def rf_fold(a, th, td):
     w = math.fmod(a, {_PI})
-    return w + {_PI} if w < 0.0 else w
-
-
-def rf_fold_up(a):
-    w = a + {_PI} if a < 0.0 else a
-    return 0.0 if w >= {_PI} - {FOLD_SEAM_TOL!r} else w""",
+    if w < 0.0:
+        w += {_PI}
+    dy = abs(math.sin(td) * math.sin(w) * math.sin(th))
+    return 0.0 if w >= {_PI} or (w > 0.5 * {_PI} and dy <= {FOLD_SEAM_TOL!r}) else w""",
 }
 
 
@@ -652,7 +652,7 @@ def _param_lines(lang: _Lang, pname: str, prefix: str, nch: int, cosine: bool,
                  fold: bool, domain: Array) -> list[str]:
     stmts, outs = _PARAM_CODE[pname]
     if fold and pname == "RUSIN_TH_TD_PD":
-        outs = [outs[0], outs[1], "rf_fold(pd)"]
+        outs = [outs[0], outs[1], "rf_fold(pd, th, td)"]
     py = lang.name == "python"
     r = lang.real
     out: list[str] = []
@@ -683,17 +683,25 @@ def _param_lines(lang: _Lang, pname: str, prefix: str, nch: int, cosine: bool,
             out.append("    " + " ".join(f"(void){v};" for v, _ in stmts))
         out += [f"    x[{i}] = {e};" for i, e in enumerate(outs)]
         out += ["}", ""]
-    out += _brdf_lines(lang, pname, prefix, cosine, domain)
+    canon = pname == "RUSIN_TH_TD_FOLD" or (fold and pname == "RUSIN_TH_TD_PD")
+    out += _brdf_lines(lang, pname, prefix, cosine, domain, canon)
     return out
 
 
+#: :func:`~ratfit.brdf.parametrizations.reciprocal_order`'s test (V comes first), in
+#: Python and in C / GLSL.
+_PY_LATER = "V[2] > L[2] or (V[2] == L[2] and (V[0] > L[0] or (V[0] == L[0] and V[1] > L[1])))"
+_C_LATER = "V[2] > L[2] || (V[2] == L[2] && (V[0] > L[0] || (V[0] == L[0] && V[1] > L[1])))"
+
+
 def _brdf_lines(lang: _Lang, pname: str, prefix: str, cosine: bool,
-                domain: Array) -> list[str]:
+                domain: Array, canon: bool = False) -> list[str]:
     """The BRDF at directions L, V by the one definition of
     :meth:`ratfit.brdf.fitter.BRDFFit.coords`: of the pair and its images (for all but
     full parametrizations the mirror y -> -y, then L <-> V and its mirror; for full
     ones L <-> V), the first nearest to the domain box, clipped into it; the fit's
-    validity proof covers those points."""
+    validity proof covers those points. ``canon`` (folded fits): the pair is first put
+    in :func:`~ratfit.brdf.parametrizations.reciprocal_order`."""
     from ratfit.brdf.parametrizations import get_parametrization
 
     ncand = 2 if get_parametrization(pname).invariant == "full" else 4
@@ -704,10 +712,12 @@ def _brdf_lines(lang: _Lang, pname: str, prefix: str, cosine: bool,
     if lang.name == "python":
         out = [f"def {prefix}_brdf(L, V):", f'    """{doc}"""',
                f"    lo = ({lo},)", f"    hi = ({hi},)",
-               "    lf, vf = (L[0], -L[1], L[2]), (V[0], -V[1], V[2])",
+               (f"    p, q = (V, L) if {_PY_LATER} else (L, V)" if canon else
+                "    p, q = L, V"),
+               "    lf, vf = (p[0], -p[1], p[2]), (q[0], -q[1], q[2])",
                "    best, gap = None, math.inf",
-               ("    for a, b in ((L, V), (V, L)):" if ncand == 2 else
-                "    for a, b in ((L, V), (lf, vf), (V, L), (vf, lf)):"),
+               ("    for a, b in ((p, q), (q, p)):" if ncand == 2 else
+                "    for a, b in ((p, q), (lf, vf), (q, p), (vf, lf)):"),
                f"        x = {prefix}_coords(a, b)",
                "        g = 0.0",
                "        for i in range(RATFIT_DIM):",
@@ -745,6 +755,7 @@ def _brdf_lines(lang: _Lang, pname: str, prefix: str, cosine: bool,
             (f"        {r} s = (k % 2 == 1) ? -1.0 : 1.0;" if ncand == 4 else
              f"        {r} s = 1.0;"),
             f"        {'int' if c else 'bool'} swap = {'k >= 2' if ncand == 4 else 'k == 1'};",
+            *([f"        if ({_C_LATER}) swap = !swap;"] if canon else []),
             "        for (int i = 0; i < 3; ++i) {",
             "            a[i] = swap ? V[i] : L[i];",
             "            b[i] = swap ? L[i] : V[i];",

@@ -103,7 +103,7 @@ def fit_brdf_function(fit: Any, *, clip: bool = True, cos_factor: bool = False
     ``cos_factor``: the fitted values are f cos(theta_l) as the data file gives them
     (ALTA's INV_STERADIAN_COSINE_FACTOR); divide by cos(theta_l) to get the BRDF.
     """
-    from ratfit.brdf.parametrizations import get_parametrization
+    from ratfit.brdf.parametrizations import fold_phi_d, get_parametrization
 
     par = get_parametrization(fit.parametrization)
     dom = fit.saved.space.domain
@@ -114,7 +114,7 @@ def fit_brdf_function(fit: Any, *, clip: bool = True, cos_factor: bool = False
         if clip:
             x = par.from_dirs(L, V)
             if fold:
-                x[:, 2] = np.mod(x[:, 2], np.pi)
+                x[:, 2] = fold_phi_d(x[:, 2], x[:, 0], x[:, 1])
             pad = 1e-9 * (dom[:, 1] - dom[:, 0])
             inside = np.all((x >= dom[:, 0] - pad) & (x <= dom[:, 1] + pad), axis=1)
             vals[~inside] = np.nan
@@ -172,9 +172,11 @@ class DataBRDF:
         return self._interp
 
     def coords(self, L: Array, V: Array) -> Array:
+        from ratfit.brdf.parametrizations import fold_phi_d
+
         x = self.param.from_dirs(L, V)
         if self.fold and self.param.name == "RUSIN_TH_TD_PD":
-            x[:, 2] = np.mod(x[:, 2], np.pi)
+            x[:, 2] = fold_phi_d(x[:, 2], x[:, 0], x[:, 1])
         return x
 
     def dense(self, L: Array, V: Array) -> NDArray[np.bool_]:
