@@ -26,7 +26,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from ratfit._atomic import atomic_open
-from ratfit.brdf.parametrizations import PARAMETRIZATIONS, fold_phi_d, get_parametrization
+from ratfit.brdf.parametrizations import PARAMETRIZATIONS, get_parametrization
 from ratfit.errors import FileFormatError, InputError
 from ratfit.io.data import Dataset, read_data
 
@@ -618,8 +618,11 @@ def samples_dataset(
             raise InputError(f"{src}: {exc}") from None
         meta["fold_phi_d"] = False
     if meta.get("fold_phi_d") and target == "RUSIN_TH_TD_PD":
+        # a table's own cells (phi_d exact in [0, pi)), not a pair of directions: no
+        # seam rule (:func:`fold_phi_d` would merge the cells at theta_h = 0 or
+        # theta_d = 0, where every phi_d is a pair in the plane of incidence)
         coords = coords.copy()
-        coords[:, 2] = fold_phi_d(coords[:, 2], coords[:, 0], coords[:, 1])
+        coords[:, 2] = np.mod(coords[:, 2], np.pi)
     meta["param_in"] = target
     meta["source"] = src
     p = PARAMETRIZATIONS.get(target)
