@@ -181,3 +181,25 @@ def test_a_stored_proof_is_proved_again_before_an_export_claims_it(tmp_path: Pat
         export_fit(path, "python", out)
         head = out.read_text().split("\n\n")[0]
         assert ("q > 0 and p >= 0 proved" in head) is claimed, head
+
+
+@pytest.mark.parametrize("name", ["RUSIN_TH_TD_PD", "RUSIN_TH_TD_SYM", "RUSIN_TH_TD_FOLD"])
+def test_validity_rows_cover_the_retro_face(name: str) -> None:
+    """At theta_d = 0 (L = V) phi_d is undefined, so a round trip through directions moves
+    every point of that face to phi_d = 0; pairs with theta_d -> 0 still reach them all.
+    The box's validity rows hold that face, and each row is within a hair of a pair."""
+    from ratfit.brdf.validity import box_configurations
+
+    p = get_parametrization(name)
+    dom = np.array(p.bounds, dtype=float)
+    dom[0, 1], dom[1, 1] = 1.50, 1.55  # as far up as a MERL table's cells
+    if name == "RUSIN_TH_TD_PD":
+        dom[2] = [0.0, np.pi]
+    rows = box_configurations(name, dom, 8000)
+    face = rows[rows[:, 1] == 0.0]
+    assert len(face) > 150  # 20 x 20 grid points on the face, of which ~half are pairs' limits
+    assert len(np.unique(np.round(face[:, 2], 9))) > 10  # many phi_d (or u, s), not one
+    # every row is a limit of valid pairs: a pair exists within 1e-5 of it
+    L, V = p.to_dirs(face + 1e-6 * (dom.mean(axis=1) - face))
+    back = p.from_dirs(L, V)
+    np.testing.assert_allclose(back, face, atol=1e-5)

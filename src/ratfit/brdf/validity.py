@@ -140,8 +140,13 @@ def configurations(param: str, domain: ArrayLike, points: int = 60_000,
 
 def box_configurations(param: str, domain: ArrayLike, points: int = 200_000) -> Array | None:
     """Grid points of the box ``domain`` (ends included) that are valid configurations
-    of ``param``: directions above the horizon that convert back to the same
-    coordinates. None when the parametrization is unknown (then the whole box counts).
+    of ``param`` or limits of them: directions above the horizon that convert back to the
+    same coordinates, there or a hair (:data:`LIMIT_NUDGE` of the way to the box's
+    centre) inside the box. The limits matter on faces where a coordinate is undefined:
+    at theta_d = 0 (L = V) phi_d is, so the round trip moves every point of that face to
+    phi_d = 0, yet pairs with theta_d -> 0 reach them all, and the proof covers them
+    (satin's R in RUSIN_TH_TD_PD had q < 0 just inside that face without these rows).
+    None when the parametrization is unknown (then the whole box counts).
     """
     p = find_parametrization(param)
     if p is None:
@@ -150,11 +155,22 @@ def box_configurations(param: str, domain: ArrayLike, points: int = 200_000) -> 
     per = max(3, int(points ** (1.0 / p.dim)))
     axes = [np.linspace(lo, hi, per) for lo, hi in dom]
     g = np.stack([a.ravel() for a in np.meshgrid(*axes, indexing="ij")], axis=1)
+    try:
+        ok = _round_trips(p, g) | _round_trips(p, g + LIMIT_NUDGE * (dom.mean(axis=1) - g))
+    except InputError:
+        return None
+    return g[ok]
+
+
+#: How far toward the box's centre :func:`box_configurations` moves a grid point to tell
+#: whether it is a limit of valid configurations.
+LIMIT_NUDGE = 1e-6
+
+
+def _round_trips(p: Parametrization, g: Array) -> NDArray[np.bool_]:
+    """Rows of ``g`` that convert to directions above the horizon and back to themselves."""
     with np.errstate(all="ignore"):
-        try:
-            L, V = p._to(g)
-        except InputError:
-            return None
+        L, V = p._to(g)
         ok = np.isfinite(L).all(axis=1) & np.isfinite(V).all(axis=1)
         ok &= (L[:, 2] >= 0) & (V[:, 2] >= 0)
         back = np.full_like(g, np.nan)
@@ -162,8 +178,7 @@ def box_configurations(param: str, domain: ArrayLike, points: int = 200_000) -> 
             back[ok] = p._from(L[ok], V[ok])
     d = np.abs(back - g)
     d = np.minimum(d, np.abs(d - 2 * np.pi))  # angles that wrap
-    ok &= np.all(d <= 1e-7 * (1.0 + np.abs(g)), axis=1)
-    return g[ok]
+    return ok & np.all(d <= 1e-7 * (1.0 + np.abs(g)), axis=1)
 
 
 @dataclass(frozen=True)
