@@ -163,8 +163,9 @@ def test_merl_folded_axes_are_reciprocal_at_the_fold(tmp_path: Path) -> None:
     """A fit in MERL's axes with phi_d folded into [0, pi) (how a MERL table is fitted
     in RUSIN_TH_TD_PD) is reciprocal through the fold: phi_d and phi_d + pi are one
     value. In the plane of incidence phi_d is 0 or pi up to rounding, and folding it by
-    np.mod sent a pair and its exchange to opposite ends (21 % of random in-plane pairs,
-    here values 1.5 against 0.5). Every evaluator gives one value for both."""
+    np.mod sent a pair and its exchange to opposite ends (21 % of random in-plane pairs;
+    in this box, which holds phi_d = pi, values 1.5 against 0.5). Every evaluator gives
+    one value for both."""
     fit = load_brdf_fit(_fit_file(tmp_path, "RUSIN_TH_TD_PD"))
     L, V = _in_plane(3000, 8)
     ref = fit.eval_dirs(L, V)[:, 0]
