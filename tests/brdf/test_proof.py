@@ -12,7 +12,7 @@ from types import SimpleNamespace
 
 import numpy as np
 import pytest
-from conftest import exported_brdf_in_c
+from conftest import above_horizon, exported_brdf_in_c
 
 from ratfit.brdf.fitter import BRDFFitter, load_brdf_fit
 from ratfit.brdf.parametrizations import get_parametrization
@@ -203,3 +203,32 @@ def test_validity_rows_cover_the_retro_face(name: str) -> None:
     L, V = p.to_dirs(face + 1e-6 * (dom.mean(axis=1) - face))
     back = p.from_dirs(L, V)
     np.testing.assert_allclose(back, face, atol=1e-5)
+
+
+def test_the_proof_takes_q_sign_where_pairs_are() -> None:
+    """q positive wherever the fit is evaluated but negative on average over its box
+    (its constant coefficient < 0: pieces no pair reaches carry much of the box) is
+    proved positive, not "refuted" by a proof of -q > 0. In RUSIN_TH_TD_FOLD no pair has
+    |u| > sin(theta_h), and on this box's faces the clipped images keep |u| <= theta_h,
+    so q = 1 + 400 u^2 (theta_h^2 - u^2) >= 1 where the fit is evaluated; its mean over
+    the box is 1 + 400 * 0.5^4 (1/9 - 1/5) = -1.2."""
+    fold = "RUSIN_TH_TD_FOLD"
+    dom = np.array([[0.0, 0.5], [0.0, 0.5], [-0.5, 0.5]])  # every pair above the horizon
+    space = PolynomialSpace("legendre", dom, "total")
+
+    def q_of(t: np.ndarray) -> np.ndarray:
+        x = space.from_window(t)
+        return 1.0 + 400.0 * x[:, 2] ** 2 * (x[:, 0] ** 2 - x[:, 2] ** 2)
+
+    rf = RationalFunction(space, _poly(space, lambda t: np.ones(len(t)), 1),
+                          _poly(space, q_of, 35))
+    assert rf.to_family().q[0] < -1.0  # the mean over the box
+    rng = np.random.default_rng(1)
+    L, V = above_horizon(rng, 20_000, 0.0), above_horizon(rng, 20_000, 0.0)
+    x = np.clip(get_parametrization(fold).from_dirs(L, V), dom[:, 0], dom[:, 1])
+    assert np.all(rf.denominator(x) >= 1.0 - 1e-9)  # where the fit is evaluated
+    proof = prove_validity(rf, fold, values="log")
+    assert proof.proved and proof.q.margin > 0, proof.summary()
+    # a q that does dip below 0 where pairs are is still refuted
+    bad = RationalFunction(space, rf.p, _poly(space, lambda t: q_of(t) - 1.5, 35))
+    assert not prove_validity(bad, fold, values="log").proved

@@ -1111,9 +1111,9 @@ def prove_validity(rf: RationalFunction, param: str, keep: ArrayLike | None = No
     fam = rf.to_family()
     Q = space.tensor_coef(fam.q)
     P = space.tensor_coef(fam.p)
-    sign = 1.0 if Q.flat[0] >= 0 else -1.0
     p = find_parametrization(param)
     whole = keep is None or np.array_equal(np.asarray(keep), np.arange(space.dim))
+    sign = _q_sign(rf, param, Q, whole and p is not None and space.dim == p.dim)
     exclude = None
     region = "the whole domain box"
     if p is not None and p.name in _EXCLUDERS and whole and space.dim == p.dim:
@@ -1167,6 +1167,28 @@ def prove_validity(rf: RationalFunction, param: str, keep: ArrayLike | None = No
     top_c = float(ceiling) if values == "log" and ceiling is not None else None
     return ValidityProof(all(s.proved for s in parts), qp, pp, region, bad, values, top_c,
                          None if top_c is None else envelope, pf)
+
+
+#: Grid points of the box (at most) at which :func:`_q_sign` reads q's sign.
+SIGN_POINTS = 4096
+
+
+def _q_sign(rf: RationalFunction, param: str, Q: Array, on_grid: bool) -> float:
+    """The sign q has where the fit is evaluated: the sign of most of its values at the
+    valid configurations of a grid of the box (:func:`box_configurations`); without
+    them, of q's constant coefficient. The constant coefficient is q's mean over the
+    whole box, and a q positive at every pair may be negative on average over the
+    pieces no pair reaches: four fits of satin_rosaline G in RUSIN_TH_TD_FOLD had a mean
+    of -1.4e9..-2.1e9 (max |coefficient| 7e10-9e10), and the proof of -q > 0 that
+    followed was "refuted" at the first box's corners, where q > 0."""
+    pts = box_configurations(param, rf.space.domain, SIGN_POINTS) if on_grid else None
+    if pts is not None and len(pts):
+        with np.errstate(all="ignore"):
+            v = rf.denominator(pts)
+        pos, neg = int(np.sum(v > 0)), int(np.sum(v < 0))
+        if pos or neg:
+            return 1.0 if pos >= neg else -1.0
+    return 1.0 if Q.flat[0] >= 0 else -1.0
 
 
 def reprove_saved(saved: object) -> bool | None:
