@@ -38,6 +38,7 @@ from ratfit.brdf.parametrizations import (
     find_parametrization,
     fold_phi_d,
     get_parametrization,
+    is_folded,
     reciprocal_order,
 )
 from ratfit.core.bases import PolynomialSpace
@@ -2244,7 +2245,7 @@ class BRDFFit:
         p = get_parametrization(self.parametrization)
         dom = np.asarray(self.saved.space.domain, dtype=float)
         la, va = check_dirs(L, V)
-        if p.name == "RUSIN_TH_TD_FOLD" or self.fold_phi_d:
+        if is_folded(p.name, self.fold_phi_d):
             la, va = reciprocal_order(la, va)
         cols = np.setdiff1d(np.arange(p.dim), self.dropped)
         flip = np.array([1.0, -1.0, 1.0])

@@ -36,6 +36,7 @@ __all__ = [
     "find_parametrization",
     "fold_phi_d",
     "get_parametrization",
+    "is_folded",
     "reciprocal_order",
 ]
 
@@ -241,6 +242,13 @@ def _iso_dirs(tl: Array, tv: Array, dphi: Array) -> tuple[Array, Array]:
 
 def _stack(*cols: Array) -> Array:
     return np.stack(cols, axis=1)
+
+
+def is_folded(param: str, fold_phi_d: bool) -> bool:
+    """Whether a fit's phi_d is folded into [0, pi) (:func:`fold_phi_d`): always in
+    RUSIN_TH_TD_FOLD, and in RUSIN_TH_TD_PD for a MERL table (its ``fold_phi_d`` flag).
+    Every evaluator of such a fit takes the pair in :func:`reciprocal_order`."""
+    return param == "RUSIN_TH_TD_FOLD" or (fold_phi_d and param == "RUSIN_TH_TD_PD")
 
 
 def reciprocal_order(L: Array, V: Array) -> tuple[Array, Array]:

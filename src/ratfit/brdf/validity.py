@@ -1113,10 +1113,12 @@ def prove_validity(rf: RationalFunction, param: str, keep: ArrayLike | None = No
     P = space.tensor_coef(fam.p)
     p = find_parametrization(param)
     whole = keep is None or np.array_equal(np.asarray(keep), np.arange(space.dim))
-    sign = _q_sign(rf, param, Q, whole and p is not None and space.dim == p.dim)
+    # the box is the parametrization's own (no coordinate dropped): its pairs are known
+    own_box = whole and p is not None and space.dim == p.dim
+    sign = _q_sign(rf, param, Q, own_box)
     exclude = None
     region = "the whole domain box"
-    if p is not None and p.name in _EXCLUDERS and whole and space.dim == p.dim:
+    if own_box and p is not None and p.name in _EXCLUDERS:
         exclude = _EXCLUDERS[p.name](space)
         region = "the domain box less pieces no pair of directions reaches"
     fam_name = space.family.name

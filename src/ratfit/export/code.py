@@ -32,7 +32,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from ratfit._atomic import atomic_open
-from ratfit.brdf.parametrizations import FOLD_SEAM_TOL
+from ratfit.brdf.parametrizations import FOLD_SEAM_TOL, is_folded
 from ratfit.errors import AccuracyWarning, InputError, RatfitError
 from ratfit.io.fitfile import SavedFit
 
@@ -683,8 +683,7 @@ def _param_lines(lang: _Lang, pname: str, prefix: str, nch: int, cosine: bool,
             out.append("    " + " ".join(f"(void){v};" for v, _ in stmts))
         out += [f"    x[{i}] = {e};" for i, e in enumerate(outs)]
         out += ["}", ""]
-    canon = pname == "RUSIN_TH_TD_FOLD" or (fold and pname == "RUSIN_TH_TD_PD")
-    out += _brdf_lines(lang, pname, prefix, cosine, domain, canon)
+    out += _brdf_lines(lang, pname, prefix, cosine, domain, is_folded(pname, fold))
     return out
 
 
