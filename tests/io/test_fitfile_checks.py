@@ -217,6 +217,7 @@ BAD_FIELDS = {
     "segments-string-dt": (_brdf("segments", {"dt": "0.1"}), "segments"),
     "channel-names-number": (_brdf("channel_names", 3), "channel_names"),
     "subset-bogus": (_brdf("subset", {"points": 900, "of": 600}), "subset"),
+    "subset-by-bogus": (_brdf("subset", {"points": 200, "of": 600, "by": "cells"}), "subset"),
     "verified-string": (lambda d: d["channels"][0]["diagnostics"].update(verified="yes"),
                         "verified"),
     "provenance-segments": (lambda d: d["provenance"].update(segments={"dt": [1]}),

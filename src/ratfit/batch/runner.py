@@ -20,7 +20,7 @@ and the fit settings::
     [[inputs]]
     path = "cornell/*.brdf"    # measured BRDFs: one task per file, as `ratfit brdf fit`
     max_points = 300           # BRDF settings: parametrization, floor_rel, cosine, clamp,
-                               # color, max_points, positive_q, polish
+                               # color, max_points, subset_by, positive_q, polish
 
 Every task is one job request (:mod:`ratfit.jobs`): a data file's channel is a
 :class:`~ratfit.jobs.FitRequest`, a BRDF file (``kind = "brdf"``; by default a
@@ -133,7 +133,8 @@ FIT_PARAMS = tuple(k for k in FIT_OPTIONS if k != "callback")
 # ratfit.jobs.BRDFFitRequest), with their defaults.
 BRDF_SETTINGS: dict[str, Any] = {
     "parametrization": None, "floor_rel": None, "cosine": False, "clamp": None,
-    "color": "rgb", "max_points": None, "positive_q": False, "polish": True,
+    "color": "rgb", "max_points": None, "subset_by": "samples", "positive_q": False,
+    "polish": True,
 }
 KINDS = ("auto", "data", "brdf")
 # kind "auto": an entry is a BRDF file by its glob's suffix or its format

@@ -623,7 +623,8 @@ def fit_brdf(ds: Dataset, *, dt: float | None = None, abs_width: AbsWidth = None
         "verified_on": ("all samples" if not ds.meta.get("subset") else
                         f"a random subset of {ds.meta['subset']['points']} of "
                         f"{ds.meta['subset']['of']} samples"),
-        "subset": ({"points": int(sub["points"]), "of": int(sub["of"])} if sub else None),
+        "subset": ({"points": int(sub["points"]), "of": int(sub["of"]),
+                    "by": str(sub.get("by", "samples"))} if sub else None),
         "dropped_coords": {str(int(i)): float(full.x[0, i]) for i in dropped},
         # what "verified" covered beyond the samples, per channel
         "validity": [_validity_line(v, pr) for v, pr in

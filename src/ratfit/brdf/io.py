@@ -15,6 +15,7 @@ theta_d = j/90 pi/2, phi_d = k/180 pi (:func:`merl_coords`).
 
 from __future__ import annotations
 
+import functools
 import os
 import re
 from collections.abc import Callable, Sequence
@@ -39,6 +40,7 @@ __all__ = [
     "MERLData",
     "brdf_dataset",
     "cie1931_xyz",
+    "merl_cell_measure",
     "merl_coords",
     "merl_from_function",
     "read_alta_binary",
@@ -56,6 +58,9 @@ Array = NDArray[np.float64]
 _PathLike = str | os.PathLike[str]
 
 BRDF_FORMATS = ("merl", "alta", "cornell", "astm", "exr")
+#: How ``max_points`` draws a subset: every sample alike, or (a MERL table) each cell as
+#: often as uniformly random direction pairs fall in it (:func:`merl_cell_measure`).
+SUBSET_BY = ("samples", "pairs")
 
 # --------------------------------------------------------------------------- samples
 @dataclass(frozen=True, eq=False)
@@ -81,6 +86,8 @@ _MERL_HEADER = 12
 # index rounding slack: the stored point of cell i maps back to i although
 # sqrt((i/90)^2) * 90 may come out a few ulps below i
 _MERL_INDEX_SLACK = 1e-9
+# midpoints a cell's theta_h and theta_d are each split into by merl_cell_measure
+_MEASURE_STEPS = 4
 
 
 @dataclass(frozen=True, eq=False)
@@ -142,6 +149,46 @@ def merl_coords() -> Array:
     pd = np.arange(180) / 180.0 * np.pi
     g = np.meshgrid(th, td, pd, indexing="ij")
     return np.stack([a.ravel() for a in g], axis=1)
+
+
+@functools.cache
+def _merl_cell_measure() -> Array:
+    u = (np.arange(_MEASURE_STEPS) + 0.5) / _MEASURE_STEPS
+    th_edges = (np.arange(91) / 90.0) ** 2 * (0.5 * np.pi)
+    td_edges = np.arange(91) / 90.0 * (0.5 * np.pi)
+    pd_lo = np.arange(180) / 180.0 * np.pi
+    pd_hi = pd_lo + np.pi / 180.0
+    out = np.zeros(MERL_SHAPE)
+    for a in u:
+        th = th_edges[:-1] + a * np.diff(th_edges)
+        for b in u:
+            td = td_edges[:-1] + b * np.diff(td_edges)
+            # both directions are above the horizon where |cos phi_d| < c
+            with np.errstate(divide="ignore"):
+                c = 1.0 / (np.tan(th)[:, None] * np.tan(td)[None, :])
+            p0 = np.arccos(np.clip(c, 0.0, 1.0))  # valid phi_d: (p0, pi - p0)
+            valid = np.clip(np.minimum(pd_hi, np.pi - p0[..., None])
+                            - np.maximum(pd_lo, p0[..., None]), 0.0, None)
+            jac = (np.sin(th) * np.diff(th_edges))[:, None] * (
+                np.sin(td) * np.cos(td) * np.diff(td_edges))[None, :]
+            out += jac[..., None] * valid
+    out /= out.sum()
+    out.flags.writeable = False
+    return out
+
+
+def merl_cell_measure() -> Array:
+    """Each MERL cell's share (90, 90, 180; sum 1) of direction pairs L, V drawn
+    uniformly (by solid angle) on the upper hemisphere, as MERL's reader indexes them.
+
+    Why: a table's cells are packed toward the mirror direction (theta_h is square-root
+    spaced), so a uniform draw of cells leaves out the pairs a renderer meets most. In
+    (theta_h, phi_h, theta_d, phi_d), dL dV = 4 cos(theta_d) dh dd; neither z depends on
+    phi_h, so the density is sin(theta_h) sin(theta_d) cos(theta_d) where both z > 0,
+    which is |cos phi_d| < cot(theta_h) cot(theta_d) (phi_d and phi_d + pi alike, one
+    cell). Integrated exactly over phi_d and by a midpoint rule of
+    :data:`_MEASURE_STEPS` points over theta_h and theta_d in each cell."""
+    return _merl_cell_measure()
 
 
 def merl_from_function(f: Callable[[Array, Array], ArrayLike], *, chunk: int = 200_000) -> Array:
@@ -551,16 +598,18 @@ def brdf_dataset(
     color: str = "rgb",
     max_points: int | None = None,
     seed: int = 0,
+    subset_by: str = "samples",
 ) -> Dataset:
     """Any supported BRDF file as a Dataset in parametrization ``param``.
 
     ``param`` None keeps the file's own. Spectral files are converted with
     ``color``: "rgb" (linear sRGB), "xyz" or "spectral" (the bands as they
     are). ``channels`` then picks output channels by name or index.
-    ``max_points`` takes a random subset (tests, quick looks).
+    ``max_points`` takes a random subset, drawn as ``subset_by`` says
+    (:func:`samples_dataset`).
     """
     return samples_dataset(read_brdf(path, fmt=fmt), param, channels=channels, color=color,
-                           max_points=max_points, seed=seed)
+                           max_points=max_points, seed=seed, subset_by=subset_by)
 
 
 def samples_dataset(
@@ -571,9 +620,18 @@ def samples_dataset(
     color: str = "rgb",
     max_points: int | None = None,
     seed: int = 0,
+    subset_by: str = "samples",
 ) -> Dataset:
     """Samples read once (:func:`read_brdf`) as a Dataset in parametrization ``param``:
-    :func:`brdf_dataset` without reading the file again (one read, several frames)."""
+    :func:`brdf_dataset` without reading the file again (one read, several frames).
+
+    ``max_points`` keeps a seeded random subset of that many samples: with ``subset_by``
+    "samples" every sample alike; with "pairs" (a MERL table) each cell as likely as
+    uniformly random direction pairs make it (:func:`merl_cell_measure`), so the subset
+    stands for the pairs a fit is evaluated at rather than for the table's grid, which
+    packs its cells toward the mirror direction."""
+    if subset_by not in SUBSET_BY:
+        raise InputError(f"unknown subset rule {subset_by!r}; choose {' or '.join(SUBSET_BY)}")
     src = str(s.meta.get("source", "data"))
     values, names = s.values, s.channel_names
     meta = dict(s.meta)
@@ -596,9 +654,21 @@ def samples_dataset(
     coords = s.coords
     n = coords.shape[0]
     idx = np.arange(n)
+    if subset_by == "pairs" and not (meta.get("format") == "merl" and s.param == "RUSIN_TH_TD_PD"):
+        raise InputError(
+            f"{src}: a subset by pairs (--subset-by pairs) draws the cells of a MERL table; "
+            f"this is {meta.get('format', 'other')} data: draw its samples alike "
+            "(--subset-by samples)")
     if max_points is not None and max_points < n:
-        idx = np.sort(np.random.default_rng(seed).choice(n, size=max_points, replace=False))
-        meta["subset"] = {"points": int(max_points), "of": int(n)}
+        rng = np.random.default_rng(seed)
+        if subset_by == "pairs":
+            share = merl_cell_measure()[merl_indices(*coords.T)]
+            # cells no pair reaches by the midpoint rule (edges of the horizon) come last
+            share = share + 1e-3 * np.min(share[share > 0], initial=1.0) / n
+            idx = np.sort(rng.choice(n, size=max_points, replace=False, p=share / share.sum()))
+        else:
+            idx = np.sort(rng.choice(n, size=max_points, replace=False))
+        meta["subset"] = {"points": int(max_points), "of": int(n), "by": subset_by}
     coords, values = coords[idx], values[idx]
     if lo is not None:
         lo, hi = lo[idx][:, keep], hi[idx][:, keep]

@@ -98,6 +98,10 @@ def _split_channels(values: tuple[str, ...]) -> list[str]:
               show_default=True, help="Spectral (Cornell) data: CIE 1931 -> linear sRGB, XYZ, "
                                       "or the bands as they are.")
 @click.option("--max-points", type=int, help="Fit a random subset of this many samples.")
+@click.option("--subset-by", type=click.Choice(["samples", "pairs"]), default="samples",
+              show_default=True,
+              help="How --max-points draws: every sample alike, or (a MERL table) each cell "
+                   "as often as uniformly random direction pairs fall in it.")
 @click.option("--holdout", type=int, metavar="K",
               help="Also fit K times, each without one of K folds of the samples (seeded: "
                    "the same folds every run), and report the errors at the samples each "
@@ -164,7 +168,7 @@ def brdf_fit(input_path: Path, output: Path | None, fmt: str | None, param: str 
              dt: float | None, abs_width: float | str | None, floor_rel: float | None,
              cosine: bool,
              clamp: float | None, positive_q: bool, channels: tuple[str, ...], color: str,
-             max_points: int | None, holdout: int | None, no_polish: bool,
+             max_points: int | None, subset_by: str, holdout: int | None, no_polish: bool,
              polish_error: str, as_json: bool, shared: bool = False, values: str = "linear",
              envelope: bool | None = None, held_out_size: bool | None = None,
              **options: Any) -> None:
@@ -175,13 +179,16 @@ def brdf_fit(input_path: Path, output: Path | None, fmt: str | None, param: str 
     check_size_flags(params, shared=shared)
     if max_points is not None and max_points < 2:
         raise click.UsageError("--max-points must be >= 2")
+    if subset_by != "samples" and max_points is None:
+        raise click.UsageError("--subset-by says how --max-points draws: give --max-points")
     if holdout is not None and holdout < 2:
         raise click.UsageError("--holdout must be >= 2 folds")
     request = BRDFFitRequest.from_settings(input_path, {
         **params, "format": fmt, "parametrization": param, "dt": dt, "abs_width": abs_width,
         "floor_rel": floor_rel, "cosine": cosine, "clamp": clamp, "positive_q": positive_q,
         "channels": _split_channels(channels), "color": color, "max_points": max_points,
-        "holdout": holdout, "polish": not no_polish, "polish_error": polish_error,
+        "subset_by": subset_by, "holdout": holdout, "polish": not no_polish,
+        "polish_error": polish_error,
         "values": values, "envelope": envelope, "held_out_size": held_out_size,
         "shared_denominator": shared,
         "output": output})

@@ -31,7 +31,8 @@ __all__ = ["BRDFFitReport", "BRDFFitRequest", "fit_brdf_file"]
 
 #: The request's own keys in a flat settings mapping (the rest are BRDF fit options).
 REQUEST_KEYS = ("format", "parametrization", "dt", "abs_width", "floor_rel", "cosine", "clamp",
-                "channels", "color", "max_points", "holdout", "shared_denominator", "output")
+                "channels", "color", "max_points", "subset_by", "holdout", "shared_denominator",
+                "output")
 COLORS = ("rgb", "xyz", "spectral")
 # 6-D Cartesian pairs of an isotropic material (Cornell files): 3-D angles carry the
 # same information with no constant column and far fewer coefficients.
@@ -66,6 +67,11 @@ class BRDFFitRequest:
         How spectral (Cornell) data becomes channels.
     max_points : int, optional
         Fit a random subset of this many samples (verified on that subset only).
+    subset_by : {"samples", "pairs"}, default "samples"
+        How ``max_points`` draws: every sample alike, or (a MERL table) each cell as
+        often as uniformly random direction pairs fall in it, so that the subset
+        stands for where a renderer evaluates the fit
+        (:func:`ratfit.brdf.io.merl_cell_measure`).
     holdout : int, optional
         K >= 2: also fit K times without one of K folds of the samples and record
         the held-out errors (:func:`ratfit.brdf.holdout.cross_validate`) in the
@@ -91,6 +97,7 @@ class BRDFFitRequest:
     channels: tuple[int | str, ...] = ()
     color: str = "rgb"
     max_points: int | None = None
+    subset_by: str = "samples"
     holdout: int | None = None
     shared_denominator: bool = False
     output: Path | None = None
@@ -126,6 +133,12 @@ class BRDFFitRequest:
         fix(self, "channels", check_channels(self.channels))
         fix(self, "color", check_choice(self.color, "color", COLORS))
         fix(self, "max_points", check_count(self.max_points, "max_points", 2))
+        from ratfit.brdf.io import SUBSET_BY
+
+        fix(self, "subset_by", check_choice(self.subset_by, "subset_by", SUBSET_BY))
+        if self.subset_by != "samples" and self.max_points is None:
+            raise InputError(f"subset_by {self.subset_by!r} says how max_points draws a "
+                             "subset: give max_points too")
         fix(self, "holdout", check_count(self.holdout, "holdout", 2))
         fix(self, "shared_denominator", check_flag(self.shared_denominator,
                                                    "shared_denominator"))
@@ -368,7 +381,8 @@ def fit_brdf_file(request: BRDFFitRequest | str | Path) -> BRDFFitReport:
     with clock.phase("frames"):
         def frame(name: str | None) -> Dataset:
             return samples_dataset(samples, name, channels=list(req.channels) or None,
-                                   color=req.color, max_points=req.max_points)
+                                   color=req.color, max_points=req.max_points,
+                                   subset_by=req.subset_by)
 
         own_ds = frame(None)
         own = str(own_ds.meta.get("param_in"))

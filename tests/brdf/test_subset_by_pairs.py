@@ -1,0 +1,99 @@
+"""--max-points on a MERL table drawn by direction pairs (--subset-by pairs): each cell as
+likely as uniformly random direction pairs make it, not as its share of the grid."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+from conftest import one_error_line, run_cli
+
+from ratfit.brdf.io import (
+    MERLData,
+    merl_cell_measure,
+    merl_from_function,
+    merl_indices,
+    samples_dataset,
+    write_merl,
+)
+from ratfit.brdf.parametrizations import get_parametrization
+from ratfit.errors import InputError
+
+
+def _uniform_pairs(rng: np.random.Generator, n: int) -> tuple[np.ndarray, np.ndarray]:
+    """L and V uniform by solid angle on the upper hemisphere."""
+    out = []
+    for _ in range(2):
+        z = rng.uniform(0.0, 1.0, n)
+        phi = rng.uniform(0.0, 2.0 * np.pi, n)
+        s = np.sqrt(1.0 - z * z)
+        out.append(np.stack([s * np.cos(phi), s * np.sin(phi), z], axis=1))
+    return out[0], out[1]
+
+
+def _blocks(w: np.ndarray) -> np.ndarray:
+    """(90, 90, 180) cell shares summed into 9 x 9 x 9 blocks."""
+    return w.reshape(9, 10, 9, 10, 9, 20).sum(axis=(1, 3, 5))
+
+
+@pytest.fixture(scope="module")
+def table() -> MERLData:
+    """A constant table: every cell above the horizon holds 1."""
+    rgb = merl_from_function(lambda L, V: np.ones((len(L), 3)))
+    return MERLData(rgb, "constant")
+
+
+def test_the_cell_measure_is_where_random_pairs_fall() -> None:
+    w = merl_cell_measure()
+    assert w.shape == (90, 90, 180) and abs(w.sum() - 1.0) < 1e-12 and w.min() >= 0.0
+    L, V = _uniform_pairs(np.random.default_rng(11), 1_000_000)
+    i, j, k = merl_indices(*get_parametrization("RUSIN_TH_TD_PD").from_dirs(L, V).T)
+    hits = np.zeros(w.shape)
+    np.add.at(hits, (i, j, k), 1.0)
+    hits /= hits.sum()
+    # 729 blocks, 1e6 pairs: sampling noise alone gives a distance of about 0.01
+    assert 0.5 * np.abs(_blocks(w) - _blocks(hits)).sum() < 0.015
+    # the grid's own share (every cell above the horizon alike) is far from it: the
+    # square-root spacing of theta_h packs cells toward the mirror direction
+    grid = np.isfinite(merl_from_function(lambda L, V: np.ones((len(L), 3)))[..., 0])
+    grid = grid / grid.sum()
+    assert 0.5 * np.abs(_blocks(grid) - _blocks(hits)).sum() > 0.2
+
+
+def test_a_subset_by_pairs_follows_the_measure(table: MERLData) -> None:
+    samples = table.samples()
+    near = merl_cell_measure()[:30].sum()  # theta_h below (1/3)^2 pi/2 = 10 degrees
+    assert 0.01 < near < 0.05
+    shares = {}
+    for by in ("pairs", "samples"):
+        ds = samples_dataset(samples, "RUSIN_TH_TD_PD", max_points=20_000, subset_by=by)
+        assert ds.meta["subset"] == {"points": 20_000, "of": samples.coords.shape[0], "by": by}
+        assert np.unique(ds.x, axis=0).shape[0] == 20_000  # no cell twice
+        shares[by] = float(np.mean(ds.x[:, 0] < (1 / 3) ** 2 * np.pi / 2))
+    assert abs(shares["pairs"] - near) < 0.006
+    assert shares["samples"] > 0.3  # a third of the grid's theta_h rows
+    # seeded: the same subset every run, in every frame
+    a = samples_dataset(samples, "RUSIN_TH_TD_FOLD", max_points=500, subset_by="pairs")
+    b = samples_dataset(samples, "RUSIN_TH_TD_FOLD", max_points=500, subset_by="pairs")
+    assert np.array_equal(a.x, b.x)
+
+
+def test_a_subset_by_pairs_needs_a_merl_table_and_max_points(shared_data: Path,
+                                                              tmp_path: Path) -> None:
+    from ratfit.brdf.io import read_brdf
+
+    cornell = shared_data / "cornell" / "mystique.brdf"
+
+    with pytest.raises(InputError, match="cells of a MERL table"):
+        samples_dataset(read_brdf(cornell), max_points=100, subset_by="pairs")
+    with pytest.raises(InputError, match="unknown subset rule"):
+        samples_dataset(read_brdf(cornell), max_points=100, subset_by="cells")
+    out = tmp_path / "fit.json"
+    one_error_line(run_cli("brdf", "fit", cornell, "--max-points", "100", "--subset-by",
+                           "pairs", "-o", out), "cells of a MERL table")
+    merl = tmp_path / "t.binary"
+    write_merl(merl, merl_from_function(lambda L, V: np.ones((len(L), 3))))
+    one_error_line(run_cli("brdf", "fit", merl, "--subset-by", "pairs", "-o", out),
+                   "give --max-points")
+    assert not out.exists()
