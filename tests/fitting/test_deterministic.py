@@ -55,6 +55,31 @@ def test_jobs_and_channel_order_do_not_change_the_answer():
           RationalFitter(jobs=2, total=t).fit(seg).results_)
 
 
+def test_a_fixed_size_fits_channels_side_by_side_with_the_same_answer(monkeypatch):
+    """One fixed (n, m) is one split a channel: with two jobs the channels run in
+    threads instead (small data too), and each keeps the answer it gets in turn."""
+    import ratfit.fitting.search as search
+
+    seg = _three_channels()
+    seen: list[int] = []
+    real = search.RationalFitter._fit_side_by_side
+
+    def spy(self, space, log_space, seg, threads, finished):
+        seen.append(threads)
+        return real(self, space, log_space, seg, threads, finished)
+
+    monkeypatch.setattr(search.RationalFitter, "_fit_side_by_side", spy)
+    one = RationalFitter(jobs=1, n=6, m=5).fit(seg).results_
+    two = RationalFitter(jobs=2, n=6, m=5).fit(seg).results_
+    assert seen == [1, 2]
+    assert [(r.n, r.m) for r in one] == [(6, 5)] * 3
+    assert sum(r.success for r in one) >= 2  # real fits compared, not three failures
+    _same(one, two)
+    # a fixed total still tests its splits in threads, one channel after another
+    RationalFitter(jobs=2, total=11).fit(seg)
+    assert seen[-1] == 1
+
+
 def _kirby2(shared_data) -> Segments:
     return read_data(shared_data / "nist" / "Kirby2.dat").segments(dt=1e-3)
 

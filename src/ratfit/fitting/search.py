@@ -45,7 +45,8 @@ total) run in a thread pool: the solvers release the GIL. Large multi-channel
 data (from :data:`CHANNEL_THREADS_POINTS` samples) is searched a channel per
 thread instead, each channel's splits one at a time: speculative splits there
 cost more than they save (MERL size, 3 channels, 2 threads: 85 s split-parallel,
-59 s with one thread).
+59 s with one thread). So is a search of one fixed (n, m), which has no other
+split to test.
 """
 
 from __future__ import annotations
@@ -378,9 +379,13 @@ class RationalFitter(Regressor):
 
     def _channel_threads(self, seg: Segments) -> int:
         """How many channels are searched at once: one per thread (up to ``jobs``)
-        for large multi-channel data, else 1 (channels in turn, splits in threads)."""
-        jobs = int(self.options_.jobs or os.cpu_count() or 1)
-        if jobs <= 1 or seg.n_channels <= 1 or seg.n_points < CHANNEL_THREADS_POINTS:
+        for large multi-channel data and for a fixed (n, m), whose search is one split
+        with nothing to test beside it; else 1 (channels in turn, splits in threads)."""
+        o = self.options_
+        jobs = int(o.jobs or os.cpu_count() or 1)
+        fixed = o.n is not None and o.m is not None
+        if jobs <= 1 or seg.n_channels <= 1 or (seg.n_points < CHANNEL_THREADS_POINTS
+                                                and not fixed):
             return 1
         return min(jobs, seg.n_channels)
 
