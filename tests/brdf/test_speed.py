@@ -57,7 +57,7 @@ def test_subset_fit_says_so_in_its_status(shared_data: Path) -> None:
     doc = json.loads(res.stdout)
     want = "verified on a subset of 300 of 262144 samples only"
     assert doc["status"].startswith(want)
-    assert doc["subset"] == {"points": 300, "of": 262144}
+    assert doc["subset"] == {"points": 300, "of": 262144, "by": "samples"}
     assert doc["n_points"] == 300
     assert doc["channels"][0]["message"].startswith(want)
     assert "not checked at the other 261844" in doc["channels"][0]["message"]
