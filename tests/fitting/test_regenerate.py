@@ -59,36 +59,3 @@ def test_without_solving_again_every_split_stays_rejected() -> None:
     res = f.fit(_seg()).result_
     assert not res.success
     assert all(v == 1 for v in f.calls.values())
-
-
-class _RejectedThrice(_FirstCandidateRejected):
-    """Each split's first three verified candidates are rejected, each adding a point."""
-
-    def search_parts(self, space, seg):
-        parts = super().search_parts(space, seg)
-
-        def verifier(rf, s, j):
-            ver = verify_channel(rf, s, j)
-            self.calls[(rf.n, rf.m)] += 1
-            if ver.verified and self.calls[(rf.n, rf.m)] <= 3:
-                self.points += 1
-                return dataclasses.replace(ver, verified=False)
-            return ver
-
-        return dataclasses.replace(parts, verifier=verifier)
-
-
-def test_a_fixed_size_is_solved_again_more_often_than_a_walks_split() -> None:
-    """A fixed (n, m) has no other split to move to: its rejected candidate is solved
-    again up to FIXED_REGENERATE times, where a walk's split stops at ``regenerate``."""
-    from ratfit.fitting.search import FIXED_REGENERATE
-
-    assert FIXED_REGENERATE > _RejectedThrice.regenerate
-    fixed = _RejectedThrice(jobs=1, n=4, m=5)
-    res = fixed.fit(_seg()).result_
-    assert res.success and (res.n, res.m) == (4, 5)
-    assert fixed.calls[(4, 5)] == 4  # three rejections, verified at the fourth solve
-    walk = _RejectedThrice(jobs=1, total=9)  # every split of 9: two solves again each
-    got = walk.fit(_seg()).result_
-    assert not got.success
-    assert max(walk.calls.values()) == 3

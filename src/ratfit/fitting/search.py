@@ -744,9 +744,6 @@ CHANNEL_THREADS_POINTS = 65_536
 # Rejected candidates are solved again with the verifier's new constraint points
 # up to this many samples (see SearchEngine._run).
 REGENERATE_POINTS = 65_536
-# A fixed (n, m) is solved again up to this many times (a walk's split: the
-# ``regenerate`` of its SearchParts, 2 for BRDF fits): it has no other split.
-FIXED_REGENERATE = 8
 
 
 def _is_int(v: object) -> bool:
@@ -780,7 +777,6 @@ class SearchEngine:
         self.system = self.parts.systems.channel(space, seg, j)
         self.cache: dict[tuple[int, int], Candidate] = {}
         self.second_opinion = False
-        self.regenerate = parts.regenerate  # solves again of a rejected candidate
         self.warm: NDArray[np.int64] | None = None
         self.infeasible: list[tuple[int, int]] = []
         self.jobs = int(jobs or options.jobs or os.cpu_count() or 1)
@@ -861,7 +857,7 @@ class SearchEngine:
         # large data: a second solve is a second pass over every sample (the walk's
         # cost there is in the solves, not in the verifier)
         again_at_most = 0 if count is None or self.seg.n_points > REGENERATE_POINTS else (
-            self.regenerate)
+            self.parts.regenerate)
         for _ in range(again_at_most):
             att, _, ver = out
             if (att.timed_out or att.status != "feasible" or ver is None or ver.verified
@@ -1031,9 +1027,6 @@ class SearchEngine:
         # worth the seed form's opinion too (each form finds fits the other misses
         # near the feasibility boundary).
         self.second_opinion = True
-        # nor another split to move to when its candidate is rejected: the validity
-        # points that candidate added are worth more solves than a walk's split gets
-        self.regenerate = max(self.parts.regenerate, FIXED_REGENERATE)
         self.test_many([(n, m)])
         return [(n, m)]
 
