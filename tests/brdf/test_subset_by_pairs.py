@@ -97,3 +97,43 @@ def test_a_subset_by_pairs_needs_a_merl_table_and_max_points(shared_data: Path,
     one_error_line(run_cli("brdf", "fit", merl, "--subset-by", "pairs", "-o", out),
                    "give --max-points")
     assert not out.exists()
+
+
+def test_a_table_without_a_fit_is_pointed_at_a_subset_by_pairs(tmp_path: Path,
+                                                               monkeypatch) -> None:
+    """A full MERL table with no verified fit (cell noise, no time to search) gets the
+    hint of the subset options that fitted RGL's satin_rosaline, and those options make the
+    request they say; a table's subset that fails does not repeat the hint."""
+    import shlex
+
+    import ratfit.jobs
+    from ratfit.errors import InputError as Stop
+    from ratfit.jobs.brdf import TABLE_SUBSET_OPTIONS
+
+    rng = np.random.default_rng(5)
+    merl = tmp_path / "t.binary"
+    write_merl(merl, merl_from_function(lambda L, V: 10.0 ** rng.uniform(-3, 0, (len(L), 3))))
+    out = tmp_path / "fit.json"
+    full = run_cli("brdf", "fit", merl, "--time-limit", "0", "-o", out)
+    said = " ".join(full.stderr.split())
+    assert full.exit_code == 1 and not out.exists(), full.output
+    assert "a subset of the table drawn where random direction pairs fall" in said
+    assert TABLE_SUBSET_OPTIONS in said and "Traceback" not in full.output
+    sub = run_cli("brdf", "fit", merl, "--max-points", "300", "--subset-by", "pairs",
+                  "--time-limit", "0", "-o", out)
+    assert sub.exit_code == 1 and not out.exists(), sub.output
+    assert "hint:" in sub.stderr and "--subset-by" not in sub.stderr.split("hint:")[-1]
+    # the options as the hint prints them: the request a user gets by pasting them
+    asked = []
+
+    def stop_at_the_request(request):
+        asked.append(request)
+        raise Stop("stopped before fitting")
+
+    monkeypatch.setattr(ratfit.jobs, "fit_brdf_file", stop_at_the_request)
+    one_error_line(run_cli("brdf", "fit", merl, *shlex.split(TABLE_SUBSET_OPTIONS), "-o",
+                           out), "stopped before fitting")
+    (req,) = asked
+    assert (req.parametrization, req.max_points, req.subset_by, req.dt, req.abs_width) == (
+        "RUSIN_TH_TD_FOLD", 5000, "pairs", 0.22, 1e-3)
+    assert (req.options.values, req.options.n, req.options.m) == ("log", 113, 112)

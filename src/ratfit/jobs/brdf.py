@@ -37,6 +37,15 @@ COLORS = ("rgb", "xyz", "spectral")
 # 6-D Cartesian pairs of an isotropic material (Cornell files): 3-D angles carry the
 # same information with no constant column and far fewer coefficients.
 ISOTROPIC_DEFAULT = {"CARTESIAN": "ISOTROPIC_TV_TL_DPHI"}
+#: A MERL table with no verified fit: the options that fitted RGL's satin_rosaline
+#: (docs/benchmarks/brdf.md, "A subset drawn by direction pairs"), as the hint says them.
+TABLE_SUBSET_OPTIONS = ("--param RUSIN_TH_TD_FOLD --max-points 5000 --subset-by pairs "
+                        "--values log --dt 0.22 --abs-width 1e-3 --n 113 --m 112")
+TABLE_SUBSET_HINT = (
+    "a subset of the table drawn where random direction pairs fall, in a frame that is "
+    f"not mirror-symmetric, may ({TABLE_SUBSET_OPTIONS}: 675 numbers, verified on those "
+    "5000 cells only and proved valid at every pair of directions; RGL's satin_rosaline "
+    "fits so in about 4 minutes on two cores)")
 
 
 @dataclass(frozen=True)
@@ -194,6 +203,7 @@ class BRDFFitReport:
     file_parametrization: str
     frames_tried: int
     subset: dict[str, int] | None = None
+    table: bool = False  # the input is a full MERL table
     metrics: dict[str, dict[str, float]] | None = None
     holdout: Any = None  # ratfit.brdf.holdout.HoldoutResult with --holdout
     messages: list[str] = field(default_factory=list)
@@ -309,6 +319,8 @@ class BRDFFitReport:
                 said = (f"no verified fit at the default segments (y +- {dt:.3g} y); "
                         f"wider ones (--dt {wider}) ")
             parts.append(said + out_of + "may give one")
+        if self.table and not self.subset:
+            parts.append(TABLE_SUBSET_HINT)
         return "hint: " + "; ".join(parts) if parts else None
 
 
@@ -400,7 +412,7 @@ def fit_brdf_file(request: BRDFFitRequest | str | Path) -> BRDFFitReport:
                                           shared_denominator=req.shared_denominator, **kw)
     ds = fitted_frame(datasets, meta)
     report = BRDFFitReport(req, fitter.results_, seg, meta, digest, own, len(datasets),
-                           subset=ds.meta.get("subset"))
+                           subset=ds.meta.get("subset"), table=is_table(own_ds))
     if req.holdout is not None:
         from ratfit.brdf.holdout import cross_validate
 
