@@ -102,6 +102,24 @@ def lobe_on_sparse_grid():
                    {"param_in": param})
 
 
+# ------------------------------------------------------------------- fitter internals
+@pytest.fixture
+def channel_threads(monkeypatch) -> list[int]:
+    """The thread count of each multi-channel fit while the test runs (1: channels in
+    turn, more: a channel per thread), recorded at ``RationalFitter._fit_side_by_side``."""
+    import ratfit.fitting.search as search
+
+    seen: list[int] = []
+    real = search.RationalFitter._fit_side_by_side
+
+    def spy(self, space, log_space, seg, threads, finished):
+        seen.append(threads)
+        return real(self, space, log_space, seg, threads, finished)
+
+    monkeypatch.setattr(search.RationalFitter, "_fit_side_by_side", spy)
+    return seen
+
+
 # ------------------------------------------------------------------- external tools, exports
 def need_tool(name: str, why: str) -> None:
     """Skip when an external tool is missing on a developer's machine, with the reason;

@@ -77,7 +77,8 @@ def test_subset_fit_says_so_in_its_status(shared_data: Path) -> None:
 
 @pytest.mark.slow
 def test_channels_side_by_side_give_each_channel_its_own_answer(shared_data: Path,
-                                                                monkeypatch) -> None:
+                                                                monkeypatch,
+                                                                channel_threads) -> None:
     """Large multi-channel data is searched a channel per thread (splits one at a
     time, no hint between channels, validity points kept per channel while it runs):
     each channel's answer is the one it gets fitted alone, whatever the timing, and
@@ -88,14 +89,7 @@ def test_channels_side_by_side_give_each_channel_its_own_answer(shared_data: Pat
     if not path.exists():
         pytest.skip(f"{path} not found")
     ds = brdf_dataset(path, None, max_points=600)
-    seen: list[int] = []
-    real = search.RationalFitter._fit_side_by_side
-
-    def spy(self, space, log_space, seg, threads, finished):
-        seen.append(threads)
-        return real(self, space, log_space, seg, threads, finished)
-
-    monkeypatch.setattr(search.RationalFitter, "_fit_side_by_side", spy)
+    seen = channel_threads
     monkeypatch.setattr(search, "CHANNEL_THREADS_POINTS", 500)
     both, seg, meta = fit_brdf(ds, dt=0.22, jobs=2)
     assert seen == [2] and both.success_

@@ -55,20 +55,11 @@ def test_jobs_and_channel_order_do_not_change_the_answer():
           RationalFitter(jobs=2, total=t).fit(seg).results_)
 
 
-def test_a_fixed_size_fits_channels_side_by_side_with_the_same_answer(monkeypatch):
+def test_a_fixed_size_fits_channels_side_by_side_with_the_same_answer(channel_threads):
     """One fixed (n, m) is one split a channel: with two jobs the channels run in
     threads instead (small data too), and each keeps the answer it gets in turn."""
-    import ratfit.fitting.search as search
-
     seg = _three_channels()
-    seen: list[int] = []
-    real = search.RationalFitter._fit_side_by_side
-
-    def spy(self, space, log_space, seg, threads, finished):
-        seen.append(threads)
-        return real(self, space, log_space, seg, threads, finished)
-
-    monkeypatch.setattr(search.RationalFitter, "_fit_side_by_side", spy)
+    seen = channel_threads
     one = RationalFitter(jobs=1, n=6, m=5).fit(seg).results_
     two = RationalFitter(jobs=2, n=6, m=5).fit(seg).results_
     assert seen == [1, 2]

@@ -397,12 +397,12 @@ def fit_brdf_file(request: BRDFFitRequest | str | Path) -> BRDFFitReport:
                                    subset_by=req.subset_by)
 
         own_ds = frame(None)
-        own = str(own_ds.meta.get("param_in"))
+        own, table = str(own_ds.meta.get("param_in")), is_table(own_ds)
         first = req.parametrization or ISOTROPIC_DEFAULT.get(own, own)
         o = req.options
         # No frame and no fixed size given: the half-vector frame first, then the angles.
         names = (first,) if req.parametrization or o.n is not None or o.total is not None \
-            else candidate_parametrizations(first, cosine=req.cosine, table=is_table(own_ds))
+            else candidate_parametrizations(first, cosine=req.cosine, table=table)
         datasets = [own_ds if name == own else frame(name) for name in names]
     with clock.phase("fit"):
         kw = {k: v for k, v in o.params().items() if k not in ("parametrization", "used_coords")}
@@ -412,7 +412,7 @@ def fit_brdf_file(request: BRDFFitRequest | str | Path) -> BRDFFitReport:
                                           shared_denominator=req.shared_denominator, **kw)
     ds = fitted_frame(datasets, meta)
     report = BRDFFitReport(req, fitter.results_, seg, meta, digest, own, len(datasets),
-                           subset=ds.meta.get("subset"), table=is_table(own_ds))
+                           subset=ds.meta.get("subset"), table=table)
     if req.holdout is not None:
         from ratfit.brdf.holdout import cross_validate
 
