@@ -9,7 +9,7 @@ import pytest
 
 COMMANDS = ["batch", "brdf", "cdf", "demo", "eval", "export", "fit", "plot", "render",
             "report", "sample", "tolerance"]
-SUBCOMMANDS = {"brdf": ["compare", "eval", "fit", "model"], "demo": ["addendum", "cdf"]}
+SUBCOMMANDS = {"brdf": ["compare", "eval", "fit", "merge", "model"], "demo": ["addendum", "cdf"]}
 FIRST_IMPORTS = ["ratfit.cli.brdf", "ratfit.cli.export", "ratfit.cli.cdf", "ratfit.cli.batch",
                  "ratfit.cli.demo", "ratfit.cli.tolerance", "ratfit.cli.main", "ratfit.cli.fit",
                  "ratfit"]

@@ -38,6 +38,7 @@ __all__ = [
     "MERL_SHAPE",
     "BRDFSamples",
     "MERLData",
+    "channel_names_of",
     "brdf_dataset",
     "cie1931_xyz",
     "merl_cell_measure",
@@ -633,19 +634,12 @@ def samples_dataset(
     if subset_by not in SUBSET_BY:
         raise InputError(f"unknown subset rule {subset_by!r}; choose {' or '.join(SUBSET_BY)}")
     src = str(s.meta.get("source", "data"))
-    values, names = s.values, s.channel_names
+    values, names = s.values, channel_names_of(s, color)
     meta = dict(s.meta)
     if meta.get("format") == "cornell":
-        if color not in ("rgb", "xyz", "spectral"):
-            raise InputError(f"unknown colour conversion {color!r}; choose rgb, xyz or spectral")
         if color != "spectral":
             values = spectrum_to_rgb(meta["wavelengths"], values, space=color)
-            names = ("R", "G", "B") if color == "rgb" else ("X", "Y", "Z")
         meta["color"] = color
-    elif color != "rgb":
-        raise InputError(
-            f"{src}: --color {color} converts spectral (Cornell) data; this "
-            f"{meta.get('format', 'BRDF')} file has channels {', '.join(names)} already")
     keep = pick_channels(names, channels, src)
     values = values[:, keep]
     names = tuple(names[j] for j in keep)
@@ -698,6 +692,22 @@ def samples_dataset(
     p = PARAMETRIZATIONS.get(target)
     inames = p.coords if p is not None else ()
     return Dataset(coords, values, lo, hi, inames, names, meta)
+
+
+def channel_names_of(s: BRDFSamples, color: str = "rgb") -> tuple[str, ...]:
+    """Every channel a fit of ``s`` can ask for, in the file's order: a Cornell file's
+    spectra become R, G, B (or X, Y, Z) unless ``color`` is "spectral"."""
+    if s.meta.get("format") == "cornell":
+        if color not in ("rgb", "xyz", "spectral"):
+            raise InputError(f"unknown colour conversion {color!r}; choose rgb, xyz or spectral")
+        return (tuple(s.channel_names) if color == "spectral" else
+                ("R", "G", "B") if color == "rgb" else ("X", "Y", "Z"))
+    if color != "rgb":
+        raise InputError(
+            f"{s.meta.get('source', 'data')}: --color {color} converts spectral (Cornell) "
+            f"data; this {s.meta.get('format', 'BRDF')} file has channels "
+            f"{', '.join(s.channel_names)} already")
+    return tuple(s.channel_names)
 
 
 def pick_channels(names: Sequence[str], channels: Sequence[str | int] | None,

@@ -52,7 +52,8 @@ def _split_channels(values: tuple[str, ...]) -> list[str]:
 @brdf_group.command("fit")
 @click.argument("input_path", metavar="INPUT", type=click.Path(dir_okay=False, path_type=Path))
 @click.option("-o", "--output", type=click.Path(dir_okay=False, path_type=Path),
-              help="Fit file (JSON); written only when every channel is verified.")
+              help="Fit file (JSON); written only when every channel is verified (the "
+                   "verified ones are then kept in a new NAME.partial.json beside it).")
 @click.option("--format", "fmt", type=click.Choice(["merl", "alta", "cornell", "astm", "exr"]),
               help="Input format (default: from the file).")
 @click.option("--param", "param", default=None,
@@ -205,6 +206,10 @@ def brdf_fit(input_path: Path, output: Path | None, fmt: str | None, param: str 
         _print_brdf_report(report)
         if output is not None and not report.success:
             click.echo(f"no fit file written: not every channel is verified ({output})", err=True)
+        if report.kept is not None:
+            names = [report.segments.names[j] for j in report.verified_channels]
+            click.echo(f"kept the verified channels {', '.join(names)} in {report.kept}",
+                       err=True)
     if not report.success:
         hint = report.hint()
         if hint:
@@ -236,6 +241,28 @@ def _print_brdf_report(report: Any) -> None:
     if report.holdout is not None:
         for line in report.holdout.lines():
             click.echo(line)
+
+
+@brdf_group.command("merge")
+@click.argument("inputs", metavar="FIT.json...", nargs=-1, required=True,
+                type=click.Path(dir_okay=False, path_type=Path))
+@click.option("-o", "--output", required=True, type=click.Path(dir_okay=False, path_type=Path),
+              help="The merged fit file (JSON).")
+def brdf_merge(inputs: tuple[Path, ...], output: Path) -> None:
+    """Join BRDF fit files of the same data whose channels were fitted in separate runs.
+
+    A fit whose channels did not all verify keeps the verified ones in NAME.partial.json;
+    refit the others alone (--channel) and merge the files. They must be fits of the same
+    input in the same frame, value form and subset; each channel keeps its own proof,
+    which is made again before the file is written.
+    """
+    from ratfit.jobs.brdf import merge_brdf_fits
+
+    if len(inputs) < 2:
+        raise click.UsageError("give two or more fit files to merge")
+    doc = merge_brdf_fits(list(inputs), output)
+    names = ", ".join(str(c["name"]) for c in doc["channels"])
+    click.echo(f"wrote {output}: channels {names} from {len(inputs)} files")
 
 
 @brdf_group.command("eval")

@@ -622,6 +622,12 @@ def _segments_spec(v: Any) -> bool:
                 return False
         elif key == "widened_from" and not (val is None or _list_of(_number)(val)):
             return False
+        elif key == "per_channel" and not (isinstance(val, list) and all(
+                isinstance(c, dict) and all(c.get(k) is None or _number(c.get(k))
+                                            for k in ("dt", "abs_width", "floor_rel"))
+                for c in val)):
+            # channels of runs with their own widths (ratfit brdf merge)
+            return False
     return True
 
 

@@ -27,7 +27,7 @@ from ratfit.jobs.common import (
     results_summary,
 )
 
-__all__ = ["BRDFFitReport", "BRDFFitRequest", "fit_brdf_file"]
+__all__ = ["BRDFFitReport", "BRDFFitRequest", "fit_brdf_file", "merge_brdf_fits"]
 
 #: The request's own keys in a flat settings mapping (the rest are BRDF fit options).
 REQUEST_KEYS = ("format", "parametrization", "dt", "abs_width", "floor_rel", "cosine", "clamp",
@@ -91,7 +91,9 @@ class BRDFFitRequest:
         sum(n_c) + m, each channel proved valid as p_c / q. ``max_total`` bounds
         each numerator; ``n``, ``total`` and a single channel are refused.
     output : path, optional
-        The fit file to write, only when every channel is verified.
+        The fit file to write, only when every channel is verified. When some are,
+        they are kept in a new file beside it (``NAME.partial.json``, never over an
+        existing file) for ``ratfit brdf merge`` with the others, fitted alone.
     """
 
     input: Path
@@ -209,6 +211,13 @@ class BRDFFitReport:
     messages: list[str] = field(default_factory=list)
     seconds: dict[str, float] = field(default_factory=dict)
     written: Path | None = None
+    input_channels: tuple[str, ...] = ()  # every channel of the input, in its order
+    kept: Path | None = None  # the verified channels of a fit that did not all verify
+
+    @property
+    def verified_channels(self) -> list[int]:
+        """Indices of the channels with a verified fit."""
+        return [j for j, r in enumerate(self.results) if r.success]
 
     @property
     def success(self) -> bool:
@@ -228,20 +237,32 @@ class BRDFFitReport:
             return "no verified fit"
         return subset_status(self.subset["points"], self.subset["of"])
 
-    def document(self) -> dict[str, Any]:
-        """The fit file's document (InputError for an unverified fit)."""
+    def document(self, channels: list[int] | None = None) -> dict[str, Any]:
+        """The fit file's document (InputError for an unverified fit); ``channels``
+        (indices) keeps those channels only, with the brdf block cut to them."""
+        from ratfit.brdf.merge import channel_meta
         from ratfit.io.fitfile import fit_document
 
         req = self.request
-        return fit_document(self.results, extra={"brdf": self.meta}, provenance={
+        results, meta = self.results, self.meta
+        if channels is not None:
+            results = [self.results[j] for j in channels]
+            meta = channel_meta(self.meta, channels)
+        return fit_document(results, extra={"brdf": meta}, provenance={
             "input": str(req.input), "input_sha256": self.input_sha256,
             "n_points": self.segments.n_points, "solver": req.options.solver,
             "segments": {"dt": req.dt, "abs_width": req.abs_width, "floor_rel": req.floor_rel},
+            # what ratfit brdf merge orders the channels of separate runs by
+            "input_channels": list(self.input_channels),
         })
 
     def summary(self) -> dict[str, Any]:
         """The ``ratfit brdf fit --json`` object."""
         doc = results_summary(self.results, self.written)
+        # the verified channels of a fit that did not all verify, in a file of their own
+        doc["kept"] = None if self.kept is None else {
+            "path": str(self.kept), "channels": [self.segments.names[j]
+                                                 for j in self.verified_channels]}
         doc["parametrization"] = self.parametrization
         doc["parametrization_candidates"] = self.meta["candidates"]
         doc["n_points"] = self.segments.n_points
@@ -292,10 +313,17 @@ class BRDFFitReport:
         failed = [n for n, r in zip(names, self.results, strict=True) if not r.success]
         parts = []
         if len(failed) < len(names):
+            alone = " ".join(f"--channel {n}" for n in failed)
+            if self.kept is not None:
+                out = self.kept.with_name(f"{self.kept.name.split('.')[0]}.rest.json")
+                kept = (f" (kept in {self.kept}); refit {', '.join(failed)} alone "
+                        f"({alone} -o {out}), then join them with ratfit brdf merge "
+                        f"{self.kept} {out} -o {self.request.output}")
+            else:
+                kept = (f"; no verified fit for {', '.join(failed)} (refit "
+                        f"{'it' if len(failed) == 1 else 'them'} alone with {alone})")
             parts.append(f"channels {', '.join(n for n in names if n not in failed)} verified "
-                         f"in {self.parametrization}; no verified fit for {', '.join(failed)} "
-                         f"(refit {'it' if len(failed) == 1 else 'them'} alone with "
-                         + " ".join(f"--channel {n}" for n in failed) + ")")
+                         f"in {self.parametrization}" + kept)
         noise = bool(widths.get("noise_estimated")) and widths["dt"] is not None
         exhausted = (_ladder_exhausted(self.meta.get("candidates", []))
                      if widths["default"] or noise else None)
@@ -382,7 +410,7 @@ def fit_brdf_file(request: BRDFFitRequest | str | Path) -> BRDFFitReport:
         fitted_frame,
         is_table,
     )
-    from ratfit.brdf.io import read_brdf, samples_dataset
+    from ratfit.brdf.io import channel_names_of, read_brdf, samples_dataset
     from ratfit.io.fitfile import file_sha256, save_fit
 
     req = request if isinstance(request, BRDFFitRequest) else BRDFFitRequest(Path(request))
@@ -412,7 +440,8 @@ def fit_brdf_file(request: BRDFFitRequest | str | Path) -> BRDFFitReport:
                                           shared_denominator=req.shared_denominator, **kw)
     ds = fitted_frame(datasets, meta)
     report = BRDFFitReport(req, fitter.results_, seg, meta, digest, own, len(datasets),
-                           subset=ds.meta.get("subset"), table=table)
+                           subset=ds.meta.get("subset"), table=table,
+                           input_channels=channel_names_of(samples, req.color))
     if req.holdout is not None:
         from ratfit.brdf.holdout import cross_validate
 
@@ -429,8 +458,75 @@ def fit_brdf_file(request: BRDFFitRequest | str | Path) -> BRDFFitReport:
         with clock.phase("write"):
             save_fit(req.output, report.document())
         report.written = req.output
+    elif report.verified_channels and req.output is not None and not req.shared_denominator:
+        with clock.phase("write"):
+            report.kept = _keep_verified(report, req.output)
     report.seconds = clock.seconds
     return report
+
+
+def _keep_verified(report: BRDFFitReport, output: Path) -> Path | None:
+    """Write the verified channels of a fit that did not all verify to a new file beside
+    ``output`` (NAME.partial.json, NAME.partial-2.json, ...: never over a file that is
+    there). None when ``output`` is not a file path (standard output, a stream)."""
+    import os
+
+    from ratfit._atomic import output_kind
+    from ratfit.io.fitfile import save_fit
+
+    if output_kind(output)[1] not in ("new", "file"):
+        return None
+    doc = report.document(report.verified_channels)
+    # beside the path as given (a link's own folder, not its target's)
+    stem = output.name[:-len(output.suffix)] if output.suffix else output.name
+    for k in range(1, 1000):
+        path = output.with_name(f"{stem}.partial{'' if k == 1 else f'-{k}'}.json")
+        try:  # claimed before it is written: nothing there is ever replaced
+            os.close(os.open(path, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o644))
+        except FileExistsError:
+            continue
+        try:
+            save_fit(path, doc)
+        except BaseException:
+            path.unlink(missing_ok=True)
+            raise
+        return path
+    raise InputError(f"{output.parent}: {stem}.partial.json .. {stem}.partial-999.json all "
+                     "exist; remove some to keep the verified channels")
+
+
+def merge_brdf_fits(inputs: list[Path], output: Path | None = None) -> dict[str, Any]:
+    """What ``ratfit brdf merge`` does: the channels of BRDF fit files of the same data,
+    fitted in separate runs (a ``.partial.json`` a fit kept, a channel refitted alone),
+    as one sealed document, written to ``output`` when given. Each file is read and
+    checked as ``load_fit`` checks it (its digest included) before anything is joined."""
+    import json
+
+    from ratfit.brdf.merge import merge_fit_documents
+    from ratfit.io.fitfile import DIGEST_KEY, content_digest, load_fit, save_fit
+
+    docs = []
+    for path in inputs:
+        load_fit(path, trust_edited=False)  # format, digest, coefficients: refused here
+        docs.append(json.loads(Path(path).read_text()))
+    doc = merge_fit_documents(docs, [str(p) for p in inputs])
+    doc[DIGEST_KEY] = content_digest(doc)
+    _check_merged(doc)
+    if output is not None:
+        save_fit(output, doc)
+    return doc
+
+
+def _check_merged(doc: dict[str, Any]) -> None:
+    """The merged document loads as a fit file and each n-D channel's stored proof holds
+    for its stored coefficients (the proof is made again, as ``brdf eval`` makes it)."""
+    from ratfit.brdf.validity import reprove_saved
+    from ratfit.io.fitfile import parse_fit
+
+    saved = parse_fit(doc, "merged fit")
+    if saved.space.dim > 1 and reprove_saved(saved) is False:
+        raise InputError("the merged channels' stored proofs do not hold for their "
+                         "coefficients: not written")
 
 
 def _metrics(report: BRDFFitReport) -> dict[str, dict[str, float]]:

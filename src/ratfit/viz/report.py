@@ -115,13 +115,18 @@ def segments_of(fit: LoadedFit, ds: Dataset):
                   "cosine": bool(meta.get("cosine_weighted")), "clamp": meta.get("clamp")}
             out = brdf_segments(ds, dt=seg.get("dt"), **kw)
             widths = seg.get("channel_dt")
-            if widths and len(widths) == out.n_channels:  # a channel at a width of its own
-                lo, hi = out.lo.copy(), out.hi.copy()
-                for j, d in enumerate(widths):
-                    one = brdf_segments(ds, dt=d, **kw)
-                    lo[:, j], hi[:, j] = one.lo[:, j], one.hi[:, j]
-                out = type(out)(out.x, lo, hi, out.y, out.names)
-            return out
+            own = seg.get("per_channel")  # channels of runs merged by ratfit brdf merge
+            if own and len(own) == out.n_channels:
+                specs = [{**kw, **c} for c in own]
+            elif widths and len(widths) == out.n_channels:  # a channel at a width of its own
+                specs = [{**kw, "dt": d} for d in widths]
+            else:
+                return out
+            lo, hi = out.lo.copy(), out.hi.copy()
+            for j, spec in enumerate(specs):
+                one = brdf_segments(ds, **spec)
+                lo[:, j], hi[:, j] = one.lo[:, j], one.hi[:, j]
+            return type(out)(out.x, lo, hi, out.y, out.names)
         except InputError:
             return None
     seg = (fit.saved.provenance or {}).get("segments") or {}
