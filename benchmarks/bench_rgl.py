@@ -15,9 +15,11 @@ and p95 < 25 % in every channel with at most 675 numbers in all.
         [--pairs 100000] [--data DIR] [--baseline SRC] [--fit-args ARGS] [--baseline-args ARGS]
 
 A material whose fit runs past --timeout, or exits without a fit file, is reported
-as such (no errors). ``--known`` runs first a material known in closed form, the
-Lambert + two GGX lobes of bench_merl.py, written and fitted the same way (issue 28:
-back within 5 % median and 25 % at the 95th percentile).
+as such (no errors); when some channels verified and ``brdf fit`` kept them
+(``fit.partial.json``), those channels are scored and the others marked "none".
+``--known`` runs first a material known in closed form, the Lambert + two GGX lobes
+of bench_merl.py, written and fitted the same way (issue 28: back within 5 % median
+and 25 % at the 95th percentile).
 
 Each material's first rows are the table itself, read back and looked up as MERL's
 reference reader does, at the same pairs: what the fit is given, as a renderer would use
@@ -101,11 +103,13 @@ def seeded_pairs(n_pairs: int, zmin: float = 0.0) -> tuple[np.ndarray, np.ndarra
     return hemisphere(rng, n_pairs, zmin), hemisphere(rng, n_pairs, zmin)
 
 
-def errors(fit_path: Path, net, n_pairs: int) -> dict[str, np.ndarray]:
-    """(2, k) median and p95 relative errors of the fit per distribution name."""
+def errors(fit_path: Path, net, n_pairs: int,
+           columns: list[int] | None = None) -> dict[str, np.ndarray]:
+    """(2, k) median and p95 relative errors of the fit per distribution name; ``columns``:
+    the network's channels the fit's k channels are (default all, in order)."""
     from ratfit.brdf.fitter import load_brdf_fit
 
-    return pair_errors(load_brdf_fit(fit_path), net, n_pairs)
+    return pair_errors(load_brdf_fit(fit_path), net, n_pairs, columns)
 
 
 class TableLookup:
@@ -122,13 +126,16 @@ class TableLookup:
         return np.nan_to_num(self.merl.lookup(L, V), nan=0.0)
 
 
-def pair_errors(model, net, n_pairs: int) -> dict[str, np.ndarray]:
+def pair_errors(model, net, n_pairs: int,
+                columns: list[int] | None = None) -> dict[str, np.ndarray]:
     """(2, k) median and p95 relative errors of ``model.eval_dirs`` against ``net``
-    per distribution name (the same seeded pairs for every model)."""
+    (its ``columns``) per distribution name (the same seeded pairs for every model)."""
     out = {}
     for label, zmin in (("all", 0.0), ("cos>0.1", 0.1)):
         L, V = seeded_pairs(n_pairs, zmin)
         y = net.eval_dirs(L, V)
+        if columns is not None:
+            y = y[:, columns]
         f = model.eval_dirs(L, V)
         rel = np.abs(f - y) / np.maximum(y, FLOOR)
         rel = np.where(np.isfinite(rel), rel, np.inf)
@@ -207,12 +214,23 @@ def fit_one(net, table: Path, out: Path, timeout: float, n_pairs: int, src: Path
         row["coefs"] = [int(a) + int(b) for a, b in pairs]
     if child["rc"] is not None and child["rc"] != 0:
         row["why"] = child["stderr"].strip().splitlines()[-1:] or ["?"]
+    kept = out.with_name(f"{out.stem}.partial.json")
     if out.exists():
         row["coefs"] = coef_counts(out)
         row["coefficients"] = coefficients(out)
         try:
             row["errors"] = errors(out, net, n_pairs)
         except Exception as exc:  # report it in the table, keep benchmarking
+            row["why"] = [f"evaluation failed: {type(exc).__name__}: {exc}"]
+    elif kept.exists():  # the channels that verified, kept by brdf fit
+        from ratfit.io.fitfile import load_fit
+
+        names = [c.name for c in load_fit(kept).channels]
+        row["kept"] = names
+        row["coefs"] = coef_counts(kept)
+        try:
+            row["errors"] = errors(kept, net, n_pairs, ["RGB".index(c) for c in names])
+        except Exception as exc:
             row["why"] = [f"evaluation failed: {type(exc).__name__}: {exc}"]
     return row
 
@@ -314,7 +332,16 @@ def main() -> None:
                 continue
             e = r["errors"]
             good = ok_fit and sum(r["coefs"]) <= (MAX_NUMBERS if r["weights"] else 10**9)
-            for c, ch in enumerate("RGB"):
+            kept = r.get("kept")
+            for ch in "RGB":
+                if kept is not None and ch not in kept:
+                    rows.append([r["name"], *code, ch, "-", "-", "-", "-", "-", *common,
+                                 "none"])
+                    continue
+                c = kept.index(ch) if kept is not None else "RGB".index(ch)
+                if kept is not None:
+                    status = "kept (" + ", ".join(sorted(set("RGB") - set(kept),
+                                                         key="RGB".index)) + ": none)"
                 med, p95 = e["all"][0, c], e["all"][1, c]
                 good = good and med < 0.05 and p95 < 0.25
                 rows.append([r["name"], *code, ch, str(r["coefs"][c]), fmt_pct(med),

@@ -173,3 +173,15 @@ def test_channel_meta_cuts_every_per_channel_entry() -> None:
     assert cut["segments"]["channel_dt"] == [0.1, 0.3]
     assert cut["segments"]["abs_width"] == [1, 3]
     assert meta["channel_names"] == ["R", "G", "B"]  # the report's own block is untouched
+
+
+def test_the_hint_quotes_paths_for_the_shell_and_makes_the_folder(tmp_path: Path) -> None:
+    data = _two_channels(tmp_path)
+    out = tmp_path / "my fits" / "a.b.json"  # a folder not made yet, a name with a dot
+    r = run_cli("brdf", "fit", data, "-o", out, *FAILS_Y1)
+    assert r.exit_code == 1 and not out.exists()
+    kept = tmp_path / "my fits" / "a.b.partial.json"
+    assert [c.name for c in load_fit(kept).channels] == ["y0"]
+    said = " ".join(r.stderr.split())
+    rest = tmp_path / "my fits" / "a.b.rest.json"
+    assert f"ratfit brdf merge '{kept}' '{rest}' -o '{out}'" in said

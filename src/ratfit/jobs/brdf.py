@@ -6,6 +6,7 @@ from __future__ import annotations
 from collections.abc import Mapping
 from dataclasses import dataclass, field, replace
 from pathlib import Path
+from shlex import quote
 from typing import Any
 
 import numpy as np
@@ -315,10 +316,12 @@ class BRDFFitReport:
         if len(failed) < len(names):
             alone = " ".join(f"--channel {n}" for n in failed)
             if self.kept is not None:
-                out = self.kept.with_name(f"{self.kept.name.split('.')[0]}.rest.json")
-                kept = (f" (kept in {self.kept}); refit {', '.join(failed)} alone "
-                        f"({alone} -o {out}), then join them with ratfit brdf merge "
-                        f"{self.kept} {out} -o {self.request.output}")
+                # paths quoted as a shell reads them: the commands are for copying
+                part, out = quote(str(self.kept)), str(self.request.output)
+                rest = quote(str(_sibling(Path(out), "rest")))
+                kept = (f" (kept in {part}); refit {', '.join(failed)} alone "
+                        f"({alone} -o {rest}), then join them with ratfit brdf merge "
+                        f"{part} {rest} -o {quote(out)}")
             else:
                 kept = (f"; no verified fit for {', '.join(failed)} (refit "
                         f"{'it' if len(failed) == 1 else 'them'} alone with {alone})")
@@ -477,10 +480,9 @@ def _keep_verified(report: BRDFFitReport, output: Path) -> Path | None:
     if output_kind(output)[1] not in ("new", "file"):
         return None
     doc = report.document(report.verified_channels)
-    # beside the path as given (a link's own folder, not its target's)
-    stem = output.name[:-len(output.suffix)] if output.suffix else output.name
+    output.parent.mkdir(parents=True, exist_ok=True)  # as every output's folder is made
     for k in range(1, 1000):
-        path = output.with_name(f"{stem}.partial{'' if k == 1 else f'-{k}'}.json")
+        path = _sibling(output, "partial" if k == 1 else f"partial-{k}")
         try:  # claimed before it is written: nothing there is ever replaced
             os.close(os.open(path, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o644))
         except FileExistsError:
@@ -491,8 +493,15 @@ def _keep_verified(report: BRDFFitReport, output: Path) -> Path | None:
             path.unlink(missing_ok=True)
             raise
         return path
-    raise InputError(f"{output.parent}: {stem}.partial.json .. {stem}.partial-999.json all "
-                     "exist; remove some to keep the verified channels")
+    raise InputError(f"{_sibling(output, 'partial')} .. partial-999.json all exist; "
+                     "remove some to keep the verified channels")
+
+
+def _sibling(output: Path, tag: str) -> Path:
+    """NAME.TAG.json beside ``output`` (NAME.json), as the path was given (a link's own
+    folder, not its target's)."""
+    stem = output.name[:-len(output.suffix)] if output.suffix else output.name
+    return output.with_name(f"{stem}.{tag}.json")
 
 
 def merge_brdf_fits(inputs: list[Path], output: Path | None = None) -> dict[str, Any]:
