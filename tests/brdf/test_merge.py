@@ -185,3 +185,26 @@ def test_the_hint_quotes_paths_for_the_shell_and_makes_the_folder(tmp_path: Path
     said = " ".join(r.stderr.split())
     rest = tmp_path / "my fits" / "a.b.rest.json"
     assert f"ratfit brdf merge '{kept}' '{rest}' -o '{out}'" in said
+
+
+def test_the_python_api_merges_as_the_command_does(tmp_path: Path) -> None:
+    from ratfit.jobs import BRDFFitRequest, BRDFMergeRequest, fit_brdf_file, merge_brdf_fits
+
+    data = _two_channels(tmp_path)
+    out = tmp_path / "fit.json"
+    report = fit_brdf_file(BRDFFitRequest.from_settings(data, {
+        "max_total": 6, "output": out}))
+    assert not report.success and report.kept == tmp_path / "fit.partial.json"
+    assert report.verified_channels == [0]
+    rest = fit_brdf_file(BRDFFitRequest.from_settings(data, {
+        "channels": ["y1"], "dt": 0.4, "max_total": 20}))
+    assert rest.success and rest.written is None
+    path = tmp_path / "rest.json"
+    from ratfit.io.fitfile import save_fit
+
+    save_fit(path, rest.document())
+    merged = merge_brdf_fits(BRDFMergeRequest([path, report.kept]))
+    assert merged.channels == ["y0", "y1"] and merged.written is None
+    assert not out.exists()
+    with pytest.raises(InputError, match="two or more"):
+        BRDFMergeRequest([path])

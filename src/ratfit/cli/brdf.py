@@ -256,13 +256,12 @@ def brdf_merge(inputs: tuple[Path, ...], output: Path) -> None:
     input in the same frame, value form and subset; each channel keeps its own proof,
     which is made again before the file is written.
     """
-    from ratfit.jobs.brdf import merge_brdf_fits
+    from ratfit.jobs import BRDFMergeRequest, merge_brdf_fits
 
     if len(inputs) < 2:
         raise click.UsageError("give two or more fit files to merge")
-    doc = merge_brdf_fits(list(inputs), output)
-    names = ", ".join(str(c["name"]) for c in doc["channels"])
-    click.echo(f"wrote {output}: channels {names} from {len(inputs)} files")
+    report = merge_brdf_fits(BRDFMergeRequest(inputs, output))
+    click.echo(f"wrote {output}: channels {', '.join(report.channels)} from {len(inputs)} files")
 
 
 @brdf_group.command("eval")

@@ -16,18 +16,27 @@ from typing import TYPE_CHECKING
 from ratfit._lazy import lazy_names
 
 if TYPE_CHECKING:
-    from ratfit.jobs.brdf import BRDFFitReport, BRDFFitRequest, fit_brdf_file
+    from ratfit.jobs.brdf import (
+        BRDFFitReport,
+        BRDFFitRequest,
+        BRDFMergeReport,
+        BRDFMergeRequest,
+        fit_brdf_file,
+        merge_brdf_fits,
+    )
     from ratfit.jobs.fit import FitReport, FitRequest, fit_file
     from ratfit.jobs.render import RenderReport, RenderRequest, render_fit
 
 _WHERE = {
     "BRDFFitReport": "brdf", "BRDFFitRequest": "brdf", "fit_brdf_file": "brdf",
+    "BRDFMergeReport": "brdf", "BRDFMergeRequest": "brdf", "merge_brdf_fits": "brdf",
     "FitReport": "fit", "FitRequest": "fit", "fit_file": "fit",
     "RenderReport": "render", "RenderRequest": "render", "render_fit": "render",
 }
 
-__all__ = ["BRDFFitReport", "BRDFFitRequest", "FitReport", "FitRequest", "RenderReport",
-           "RenderRequest", "fit_brdf_file", "fit_file", "render_fit"]
+__all__ = ["BRDFFitReport", "BRDFFitRequest", "BRDFMergeReport", "BRDFMergeRequest",
+           "FitReport", "FitRequest", "RenderReport", "RenderRequest", "fit_brdf_file",
+           "fit_file", "merge_brdf_fits", "render_fit"]
 
 
 __getattr__, __dir__ = lazy_names(globals(), _WHERE)

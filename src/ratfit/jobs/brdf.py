@@ -28,7 +28,8 @@ from ratfit.jobs.common import (
     results_summary,
 )
 
-__all__ = ["BRDFFitReport", "BRDFFitRequest", "fit_brdf_file", "merge_brdf_fits"]
+__all__ = ["BRDFFitReport", "BRDFFitRequest", "BRDFMergeReport", "BRDFMergeRequest",
+           "fit_brdf_file", "merge_brdf_fits"]
 
 #: The request's own keys in a flat settings mapping (the rest are BRDF fit options).
 REQUEST_KEYS = ("format", "parametrization", "dt", "abs_width", "floor_rel", "cosine", "clamp",
@@ -504,26 +505,70 @@ def _sibling(output: Path, tag: str) -> Path:
     return output.with_name(f"{stem}.{tag}.json")
 
 
-def merge_brdf_fits(inputs: list[Path], output: Path | None = None) -> dict[str, Any]:
+@dataclass(frozen=True)
+class BRDFMergeRequest:
+    """What ``ratfit brdf merge`` asks for.
+
+    Parameters
+    ----------
+    inputs : sequence of paths
+        Two or more fit files of ``ratfit brdf fit`` of the same input, frame, value form,
+        subset and domain, with no channel in two of them (a ``NAME.partial.json`` a fit
+        kept, the other channels refitted alone).
+    output : path, optional
+        The merged fit file to write.
+    """
+
+    inputs: tuple[Path, ...]
+    output: Path | None = None
+
+    def __post_init__(self) -> None:
+        fix = object.__setattr__
+        if isinstance(self.inputs, (str, Path)) or not hasattr(self.inputs, "__iter__"):
+            raise InputError(f"inputs must be a sequence of fit file paths, got "
+                             f"{self.inputs!r}")
+        fix(self, "inputs", tuple(as_path(p, "inputs") for p in self.inputs))
+        if len(self.inputs) < 2:
+            raise InputError("give two or more fit files to merge")
+        fix(self, "output", as_path(self.output, "output", allow_none=True))
+
+
+@dataclass
+class BRDFMergeReport:
+    """What a merge did: the sealed ``document`` (checked, each proof made again) and
+    the path it was ``written`` to (None without an output)."""
+
+    request: BRDFMergeRequest
+    document: dict[str, Any]
+    written: Path | None = None
+
+    @property
+    def channels(self) -> list[str]:
+        return [str(c["name"]) for c in self.document["channels"]]
+
+
+def merge_brdf_fits(request: BRDFMergeRequest) -> BRDFMergeReport:
     """What ``ratfit brdf merge`` does: the channels of BRDF fit files of the same data,
-    fitted in separate runs (a ``.partial.json`` a fit kept, a channel refitted alone),
-    as one sealed document, written to ``output`` when given. Each file is read and
-    checked as ``load_fit`` checks it (its digest included) before anything is joined."""
+    fitted in separate runs, as one sealed document (:mod:`ratfit.brdf.merge`), written
+    to the request's output when it has one. Each file is read and checked as
+    ``load_fit`` checks it (its digest included) before anything is joined."""
     import json
 
     from ratfit.brdf.merge import merge_fit_documents
     from ratfit.io.fitfile import DIGEST_KEY, content_digest, load_fit, save_fit
 
     docs = []
-    for path in inputs:
+    for path in request.inputs:
         load_fit(path, trust_edited=False)  # format, digest, coefficients: refused here
-        docs.append(json.loads(Path(path).read_text()))
-    doc = merge_fit_documents(docs, [str(p) for p in inputs])
+        docs.append(json.loads(path.read_text()))
+    doc = merge_fit_documents(docs, [str(p) for p in request.inputs])
     doc[DIGEST_KEY] = content_digest(doc)
     _check_merged(doc)
-    if output is not None:
-        save_fit(output, doc)
-    return doc
+    report = BRDFMergeReport(request, doc)
+    if request.output is not None:
+        save_fit(request.output, doc)
+        report.written = request.output
+    return report
 
 
 def _check_merged(doc: dict[str, Any]) -> None:
