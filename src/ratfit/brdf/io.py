@@ -59,9 +59,15 @@ Array = NDArray[np.float64]
 _PathLike = str | os.PathLike[str]
 
 BRDF_FORMATS = ("merl", "alta", "cornell", "astm", "exr")
-#: How ``max_points`` draws a subset: every sample alike, or (a MERL table) each cell as
-#: often as uniformly random direction pairs fall in it (:func:`merl_cell_measure`).
-SUBSET_BY = ("samples", "pairs")
+#: How ``max_points`` draws a subset: every sample alike; (a MERL table) each cell as
+#: often as uniformly random direction pairs fall in it (:func:`merl_cell_measure`); or
+#: half the cells so and half as often as pairs weighted by the table's luminance fall in
+#: them ("energy": where a renderer that samples the BRDF evaluates it, the highlight).
+SUBSET_BY = ("samples", "pairs", "energy")
+#: Share of an "energy" subset drawn by pairs weighted by the table's luminance.
+ENERGY_SHARE = 0.5
+# Rec. 709 luminance of linear RGB: what weighs an "energy" subset's cells
+_LUMINANCE = (0.2126, 0.7152, 0.0722)
 
 # --------------------------------------------------------------------------- samples
 @dataclass(frozen=True, eq=False)
@@ -630,7 +636,11 @@ def samples_dataset(
     "samples" every sample alike; with "pairs" (a MERL table) each cell as likely as
     uniformly random direction pairs make it (:func:`merl_cell_measure`), so the subset
     stands for the pairs a fit is evaluated at rather than for the table's grid, which
-    packs its cells toward the mirror direction."""
+    packs its cells toward the mirror direction; with "energy" a mixture, half by pairs
+    and half (:data:`ENERGY_SHARE`) by pairs weighted by the table's luminance, so a
+    narrow highlight, which uniformly random pairs almost never reach and renders
+    sample most, is in the subset too. Every channel of the file weighs the cells, so
+    a fit of some channels draws the same cells as a fit of all."""
     if subset_by not in SUBSET_BY:
         raise InputError(f"unknown subset rule {subset_by!r}; choose {' or '.join(SUBSET_BY)}")
     src = str(s.meta.get("source", "data"))
@@ -648,18 +658,22 @@ def samples_dataset(
     coords = s.coords
     n = coords.shape[0]
     idx = np.arange(n)
-    if subset_by == "pairs" and not (meta.get("format") == "merl" and s.param == "RUSIN_TH_TD_PD"):
+    if subset_by != "samples" and not (meta.get("format") == "merl"
+                                       and s.param == "RUSIN_TH_TD_PD"):
         raise InputError(
-            f"{src}: a subset by pairs (--subset-by pairs) draws the cells of a MERL table; "
-            f"this is {meta.get('format', 'other')} data: draw its samples alike "
+            f"{src}: a subset by {subset_by} (--subset-by {subset_by}) draws the cells of a "
+            f"MERL table; this is {meta.get('format', 'other')} data: draw its samples alike "
             "(--subset-by samples)")
     if max_points is not None and max_points < n:
         rng = np.random.default_rng(seed)
-        if subset_by == "pairs":
+        if subset_by != "samples":
             share = merl_cell_measure()[merl_indices(*coords.T)]
             # cells no pair reaches by the midpoint rule (edges of the horizon) come last
             share = share + 1e-3 * np.min(share[share > 0], initial=1.0) / n
-            idx = np.sort(rng.choice(n, size=max_points, replace=False, p=share / share.sum()))
+            p = share / share.sum()
+            if subset_by == "energy":
+                p = (1.0 - ENERGY_SHARE) * p + ENERGY_SHARE * _energy_share(share, s.values)
+            idx = np.sort(rng.choice(n, size=max_points, replace=False, p=p / p.sum()))
         else:
             idx = np.sort(rng.choice(n, size=max_points, replace=False))
         meta["subset"] = {"points": int(max_points), "of": int(n), "by": subset_by}
@@ -692,6 +706,16 @@ def samples_dataset(
     p = PARAMETRIZATIONS.get(target)
     inames = p.coords if p is not None else ()
     return Dataset(coords, values, lo, hi, inames, names, meta)
+
+
+def _energy_share(share: Array, values: Array) -> Array:
+    """Each cell's share of random pairs weighted by the table's luminance (every channel,
+    negative values as 0); the pair share alone where the table is all 0."""
+    v = np.maximum(np.nan_to_num(np.asarray(values, dtype=float), nan=0.0), 0.0)
+    lum = v @ np.asarray(_LUMINANCE) if v.shape[1] == 3 else v.mean(axis=1)
+    w = share * lum
+    total = float(w.sum())
+    return w / total if total > 0 and np.isfinite(total) else share / share.sum()
 
 
 def channel_names_of(s: BRDFSamples, color: str = "rgb") -> tuple[str, ...]:

@@ -99,10 +99,12 @@ def _split_channels(values: tuple[str, ...]) -> list[str]:
               show_default=True, help="Spectral (Cornell) data: CIE 1931 -> linear sRGB, XYZ, "
                                       "or the bands as they are.")
 @click.option("--max-points", type=int, help="Fit a random subset of this many samples.")
-@click.option("--subset-by", type=click.Choice(["samples", "pairs"]), default="samples",
-              show_default=True,
-              help="How --max-points draws: every sample alike, or (a MERL table) each cell "
-                   "as often as uniformly random direction pairs fall in it.")
+@click.option("--subset-by", type=click.Choice(["samples", "pairs", "energy"]),
+              default="samples", show_default=True,
+              help="How --max-points draws: every sample alike; (a MERL table) each cell "
+                   "as often as uniformly random direction pairs fall in it; or half so and "
+                   "half weighted by the table's luminance, so the highlight renders look "
+                   "at is drawn too.")
 @click.option("--holdout", type=int, metavar="K",
               help="Also fit K times, each without one of K folds of the samples (seeded: "
                    "the same folds every run), and report the errors at the samples each "

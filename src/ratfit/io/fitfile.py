@@ -633,7 +633,8 @@ def _segments_spec(v: Any) -> bool:
 
 def _subset_spec(v: Any) -> bool:
     return (isinstance(v, dict) and _is_int(v.get("points")) and _is_int(v.get("of"))
-            and 0 < v["points"] <= v["of"] and v.get("by", "samples") in ("samples", "pairs"))
+            and 0 < v["points"] <= v["of"]
+            and v.get("by", "samples") in ("samples", "pairs", "energy"))
 
 
 _PROVENANCE_FIELDS: dict[str, tuple[Any, str]] = {
@@ -672,7 +673,7 @@ _BRDF_FIELDS: dict[str, tuple[Any, str]] = {
     "segments": (_segments_spec, "an object of widths (numbers or null) and flags"),
     "verified_on": (_is_str, "a string"),
     "subset": (_opt(_subset_spec), "an object {points, of} of integers, 0 < points <= of, "
-                                   "and an optional 'by' of \"samples\" or \"pairs\""),
+                                   "and an optional 'by' of \"samples\", \"pairs\" or \"energy\""),
     "dropped_coords": (_coordinate_map, "an object mapping coordinate indices "
                                         "(\"0\", \"1\", ...) to numbers"),
     "validity": (_list_of(_opt(_is_str)), "a list of strings or nulls"),

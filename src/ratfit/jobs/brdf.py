@@ -78,11 +78,12 @@ class BRDFFitRequest:
         How spectral (Cornell) data becomes channels.
     max_points : int, optional
         Fit a random subset of this many samples (verified on that subset only).
-    subset_by : {"samples", "pairs"}, default "samples"
-        How ``max_points`` draws: every sample alike, or (a MERL table) each cell as
-        often as uniformly random direction pairs fall in it, so that the subset
-        stands for where a renderer evaluates the fit
-        (:func:`ratfit.brdf.io.merl_cell_measure`).
+    subset_by : {"samples", "pairs", "energy"}, default "samples"
+        How ``max_points`` draws: every sample alike; (a MERL table) each cell as
+        often as uniformly random direction pairs fall in it
+        (:func:`ratfit.brdf.io.merl_cell_measure`); or "energy": half so, half weighted
+        by the table's luminance, so a narrow highlight, where a renderer that samples
+        the BRDF evaluates it most, is drawn too (:func:`ratfit.brdf.io.samples_dataset`).
     holdout : int, optional
         K >= 2: also fit K times without one of K folds of the samples and record
         the held-out errors (:func:`ratfit.brdf.holdout.cross_validate`) in the
