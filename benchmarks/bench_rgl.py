@@ -41,6 +41,7 @@ import argparse
 import json
 import os
 import shlex
+import shutil
 import subprocess
 import sys
 import tempfile
@@ -171,7 +172,8 @@ class KnownMaterial:
 
 def run_one(npz: Path | None, timeout: float, n_pairs: int,
             baseline: Path | None = None, fit_args: tuple[str, ...] = (),
-            baseline_args: tuple[str, ...] = (), fit: bool = True) -> list[dict]:
+            baseline_args: tuple[str, ...] = (), fit: bool = True,
+            keep: Path | None = None) -> list[dict]:
     """The table's own lookup's errors, then the material's fit by this code with
     ``fit_args``; with ``baseline`` (a src folder) first by that code with
     ``baseline_args``, on the same table. ``fit`` False: the table's row alone."""
@@ -188,8 +190,13 @@ def run_one(npz: Path | None, timeout: float, n_pairs: int,
             return rows
         srcs = ([("baseline", baseline, baseline_args)] if baseline is not None else []) + [
             ("this", REPO / "src", fit_args)]
-        return rows + [fit_one(net, table, Path(tmp) / f"fit_{label}.json", timeout, n_pairs,
-                               src, label, args) for label, src, args in srcs]
+        out = [fit_one(net, table, Path(tmp) / f"fit_{label}.json", timeout, n_pairs,
+                       src, label, args) for label, src, args in srcs]
+        if keep is not None:  # the fit files (and kept channels), for renders
+            keep.mkdir(parents=True, exist_ok=True)
+            for f in Path(tmp).glob("fit_*.json"):
+                shutil.copy(f, keep / f"{net.name}_{f.name}")
+        return rows + out
 
 
 def fit_one(net, table: Path, out: Path, timeout: float, n_pairs: int, src: Path,
@@ -276,6 +283,9 @@ def main() -> None:
     ap.add_argument("--baseline-args", default="", metavar="ARGS",
                     help="options added to the baseline's fit (with --baseline; the same "
                          "src and other ARGS compare two options on the same tables)")
+    ap.add_argument("--keep", type=Path, metavar="DIR",
+                    help="copy each fit file (and a failed fit's kept channels) to DIR, "
+                         "named MATERIAL_fit_this.json, ...")
     add_markdown_option(ap)
     args = ap.parse_args()
     fit_args, base_args = tuple(shlex.split(args.fit_args)), tuple(shlex.split(args.baseline_args))
@@ -304,7 +314,7 @@ def main() -> None:
     met = table_met = 0
     for npz in runs:
         fits = run_one(npz, args.timeout, args.pairs, args.baseline, fit_args, base_args,
-                       fit=not args.table_only)
+                       fit=not args.table_only, keep=args.keep)
         lookup, fits = fits[0], fits[1:]
         e = lookup["errors"]
         table_good = True

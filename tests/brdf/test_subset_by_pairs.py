@@ -137,3 +137,68 @@ def test_a_table_without_a_fit_is_pointed_at_a_subset_by_pairs(tmp_path: Path,
     assert (req.parametrization, req.max_points, req.subset_by, req.dt, req.abs_width) == (
         "RUSIN_TH_TD_FOLD", 5000, "pairs", 0.22, 1e-3)
     assert (req.options.values, req.options.n, req.options.m) == ("log", 113, 112)
+
+
+def _spike_table() -> np.ndarray:
+    """A dim diffuse table (0.01 1/sr) with a narrow reflection: 300 1/sr within 0.02 rad
+    of the mirror direction, where uniformly random pairs almost never fall."""
+    def f(L: np.ndarray, V: np.ndarray) -> np.ndarray:
+        h = L + V
+        cos_h = h[:, 2] / np.linalg.norm(h, axis=1)
+        spike = np.where(np.arccos(np.clip(cos_h, -1.0, 1.0)) < 0.02, 300.0, 0.0)
+        return np.stack([0.01 + spike, 0.02 + spike, 0.01 + 0.5 * spike], axis=1)
+
+    return merl_from_function(f)
+
+
+def test_an_energy_subset_draws_the_highlight_renders_look_at(tmp_path: Path) -> None:
+    from ratfit.brdf.io import ENERGY_SHARE, read_brdf
+
+    merl = tmp_path / "spike.binary"
+    write_merl(merl, _spike_table())
+    samples = read_brdf(merl)
+    cells = merl_indices(*samples.coords.T)
+    in_spike = samples.values[:, 1] > 1.0
+    pairs = merl_cell_measure()[cells]
+    lum = samples.values @ np.array([0.2126, 0.7152, 0.0722])
+    # the share of the draw the spike's cells should get: half of the energy's, none of
+    # the pairs' to speak of
+    expected = ((1 - ENERGY_SHARE) * pairs[in_spike].sum() / pairs.sum()
+                + ENERGY_SHARE * (pairs * lum)[in_spike].sum() / (pairs * lum).sum())
+    assert 0.1 < expected < 0.5 and pairs[in_spike].sum() / pairs.sum() < 1e-3
+    k = 4000
+    got = {}
+    for by in ("pairs", "energy"):
+        ds = samples_dataset(samples, "RUSIN_TH_TD_FOLD", max_points=k, subset_by=by)
+        assert ds.meta["subset"] == {"points": k, "of": samples.coords.shape[0], "by": by}
+        got[by] = float(np.mean(ds.y[:, 1] > 1.0))
+    assert got["pairs"] < 0.005
+    # sampling without replacement from a few thousand spike cells: within 3 sigma
+    assert abs(got["energy"] - expected) < 3 * np.sqrt(expected * (1 - expected) / k) + 0.01
+    # every channel weighs the cells: a fit of one channel draws the cells of all three
+    one = samples_dataset(samples, "RUSIN_TH_TD_FOLD", max_points=k, subset_by="energy",
+                          channels=["B"])
+    full = samples_dataset(samples, "RUSIN_TH_TD_FOLD", max_points=k, subset_by="energy")
+    assert np.array_equal(one.x, full.x) and np.array_equal(one.y[:, 0], full.y[:, 2])
+
+
+def test_an_energy_subset_of_a_dark_table_is_a_subset_by_pairs(table: MERLData) -> None:
+    """Nothing lit to weigh by (every cell 0): the energy half draws by pairs too."""
+    samples = table.samples()
+    dark = type(samples)(samples.param, samples.coords, 0.0 * samples.values,
+                         samples.channel_names, dict(samples.meta))
+    a = samples_dataset(dark, "RUSIN_TH_TD_PD", max_points=3000, subset_by="energy")
+    b = samples_dataset(dark, "RUSIN_TH_TD_PD", max_points=3000, subset_by="pairs")
+    assert np.array_equal(a.x, b.x)
+
+
+def test_an_energy_subset_is_refused_where_pairs_are(shared_data: Path, tmp_path: Path) -> None:
+    from ratfit.brdf.io import read_brdf
+
+    cornell = shared_data / "cornell" / "mystique.brdf"
+    with pytest.raises(InputError, match="subset by energy"):
+        samples_dataset(read_brdf(cornell), max_points=100, subset_by="energy")
+    out = tmp_path / "fit.json"
+    one_error_line(run_cli("brdf", "fit", cornell, "--max-points", "100", "--subset-by",
+                           "energy", "-o", out), "cells of a MERL table")
+    assert not out.exists()

@@ -261,6 +261,16 @@ def test_subset_fit_says_subset_never_verified_on_its_data(brdf_fits, tmp_path: 
             assert "<td>yes</td>" in page and "subset" not in page
 
 
+@pytest.mark.parametrize("by", ["samples", "pairs", "energy"])
+def test_each_subset_rule_is_a_fit_file_field(brdf_fits, tmp_path: Path, by: str) -> None:
+    from ratfit.io.fitfile import load_fit, subset_of
+
+    _, sub, _ = brdf_fits
+    f = reseal(sub, tmp_path / f"{by}.json", lambda d: d["brdf"]["subset"].update(by=by))
+    saved = load_fit(f)
+    assert saved.extra["brdf"]["subset"]["by"] == by and subset_of(saved) == (200, 600)
+
+
 @pytest.mark.parametrize(("proof", "said"), [
     ([{"proved": True}], "q > 0 and p >= 0 proved where it is evaluated"),
     ([{"proved": False}], "checked on a dense grid, not proved"),
