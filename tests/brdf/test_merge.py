@@ -164,6 +164,8 @@ def test_channel_meta_cuts_every_per_channel_entry() -> None:
     meta = {"channel_names": ["R", "G", "B"], "validity": ["r", "g", "b"],
             "proof": [{"proved": True, "k": 0}, None, {"proved": True, "k": 2}],
             "held_out_size": [None, {"k": 1}, None], "parametrization": "X",
+            "holdout": {"k": 5, "metrics": {"R": {"rmse": 1.0}, "G": {"rmse": 2.0},
+                                            "B": {"rmse": 3.0}}},
             "segments": {"dt": 0.1, "channel_dt": [0.1, 0.2, 0.3], "abs_width": [1, 2, 3],
                          "floor_rel": None}}
     cut = channel_meta(meta, [0, 2])
@@ -172,7 +174,9 @@ def test_channel_meta_cuts_every_per_channel_entry() -> None:
     assert cut["held_out_size"] == [None, None] and cut["parametrization"] == "X"
     assert cut["segments"]["channel_dt"] == [0.1, 0.3]
     assert cut["segments"]["abs_width"] == [1, 3]
+    assert cut["holdout"] == {"k": 5, "metrics": {"R": {"rmse": 1.0}, "B": {"rmse": 3.0}}}
     assert meta["channel_names"] == ["R", "G", "B"]  # the report's own block is untouched
+    assert set(meta["holdout"]["metrics"]) == {"R", "G", "B"}
 
 
 def test_the_hint_quotes_paths_for_the_shell_and_makes_the_folder(tmp_path: Path) -> None:

@@ -48,6 +48,12 @@ def channel_meta(meta: Mapping[str, Any], keep: Sequence[int]) -> dict[str, Any]
     for key in PER_CHANNEL:
         if isinstance(meta.get(key), list) and len(meta[key]) == n:
             out[key] = [meta[key][j] for j in keep]
+    hold = meta.get("holdout")
+    if isinstance(hold, dict) and isinstance(hold.get("metrics"), dict):
+        # the folds' held-out errors of the kept channels (the folds themselves fitted all)
+        names = {str(meta["channel_names"][j]) for j in keep}
+        out["holdout"] = {**hold, "metrics": {k: v for k, v in hold["metrics"].items()
+                                              if k in names}}
     seg = dict(meta.get("segments") or {})
     for key in ("channel_dt", "abs_width"):
         if isinstance(seg.get(key), list) and len(seg[key]) == n:
