@@ -116,8 +116,9 @@ def test_merge_joins_the_kept_channels_with_one_refitted_alone(tmp_path: Path) -
 
 
 @pytest.mark.parametrize("case", ["same channel", "other data", "other subset", "not brdf",
-                                  "edited", "one file"])
-def test_merge_refuses_files_that_are_not_one_fit(tmp_path: Path, case: str) -> None:
+                                  "edited", "one file", "alta function"])
+def test_merge_refuses_files_that_are_not_one_fit(tmp_path: Path, shared_data: Path,
+                                                  case: str) -> None:
     data = _two_channels(tmp_path)
     a = tmp_path / "a.json"
     assert run_cli("brdf", "fit", data, "--channel", "y0", *FAILS_Y1, "-o", a).exit_code == 0
@@ -135,13 +136,16 @@ def test_merge_refuses_files_that_are_not_one_fit(tmp_path: Path, case: str) -> 
     else:
         args = ["--channel", "y1", "--dt", "0.4"]
         expect = {"not brdf": "not a fit file of ratfit brdf fit", "edited": "edited",
-                  "one file": "give two or more fit files"}[case]
+                  "one file": "give two or more fit files",
+                  "alta function": "an ALTA function file, not a ratfit fit file"}[case]
     assert run_cli("brdf", "fit", data, *args, "-o", b).exit_code == 0
     if case == "not brdf":
         # a fit of ratfit fit: a 1-D fit of the same kind of file has no brdf block
         xy = tmp_path / "xy.dat"
         xy.write_text("\n".join(f"{t} {np.exp(t)}" for t in np.linspace(0, 1, 30)) + "\n")
         assert run_cli("fit", xy, "--dt", "0.01", "-o", b).exit_code == 0
+    if case == "alta function":  # load_fit reads it; merge needs ratfit's own document
+        b.write_bytes((shared_data / "alta" / "fits" / "rational-example-01.brdf").read_bytes())
     if case == "edited":
         doc = json.loads(b.read_text())
         doc["channels"][0]["p"][0] *= 1.5

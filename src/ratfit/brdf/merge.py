@@ -10,15 +10,11 @@ each channel's stored proof a proof of the merged file's channel.
 
 from __future__ import annotations
 
-import datetime as _dt
-import platform
-import sys
 from collections.abc import Mapping, Sequence
 from typing import Any
 
-import numpy as np
-
 from ratfit.errors import InputError
+from ratfit.io.fitfile import run_provenance
 
 __all__ = ["PER_CHANNEL", "SAME_FIT", "channel_meta", "merge_fit_documents"]
 
@@ -111,13 +107,7 @@ def merge_fit_documents(docs: Sequence[Mapping[str, Any]], wheres: Sequence[str]
             meta[key] = vals
     meta["segments"] = _segments(metas, rows, wheres)
     meta["merged_from"] = [_run(d, m, w) for d, m, w in zip(docs, metas, wheres, strict=True)]
-    prov: dict[str, Any] = {
-        "ratfit_version": _version(),
-        "created": _dt.datetime.now(_dt.UTC).isoformat(timespec="seconds"),
-        "python": platform.python_version(),
-        "numpy": np.__version__,
-        "command": list(sys.argv),
-    }
+    prov = run_provenance()
     for key in ("input", "input_sha256", "n_points", "solver", "segments", "input_channels"):
         vals = [d["provenance"].get(key) for d in docs]
         if all(v == vals[0] for v in vals) and vals[0] is not None:
@@ -201,9 +191,3 @@ def _same(a: Any, b: Any, message: str) -> None:
 def _short(v: Any) -> str:
     text = repr(v)
     return text if len(text) <= 40 else text[:37] + "..."
-
-
-def _version() -> str:
-    from ratfit._version import __version__
-
-    return __version__

@@ -37,8 +37,8 @@ from ratfit.errors import FileFormatError, InputError
 
 __all__ = [
     "FORMAT", "VERSION", "FitFileWarning", "SavedChannel", "SavedFit", "content_digest",
-    "ceiling_bound", "fit_document", "load_fit", "save_fit", "proof_ceiling", "scope_text",
-    "subset_of", "trusting_edited",
+    "ceiling_bound", "fit_document", "load_fit", "read_fit_document", "run_provenance",
+    "save_fit", "proof_ceiling", "scope_text", "subset_of", "trusting_edited",
 ]
 
 FORMAT = "ratfit.fit"
@@ -111,8 +111,6 @@ def fit_document(
     ``extra`` adds application keys at the top level (e.g. ``"brdf"``: the
     parametrization of the inputs); they come back as ``SavedFit.extra``.
     """
-    from ratfit._version import __version__
-
     if not results:
         raise InputError("no fit to save")
     bad = [r.channel for r in results if not r.success or r.rational is None]
@@ -139,13 +137,7 @@ def fit_document(
                 "monomial": (monomial or [None] * len(results))[i],
             }
         )
-    prov = {
-        "ratfit_version": __version__,
-        "created": _dt.datetime.now(_dt.UTC).isoformat(timespec="seconds"),
-        "python": platform.python_version(),
-        "numpy": np.__version__,
-        "command": sys.argv,
-    }
+    prov = run_provenance()
     prov.update(provenance or {})
     doc = {
         "format": FORMAT,
@@ -160,6 +152,20 @@ def fit_document(
         doc[key] = val
     doc[DIGEST_KEY] = content_digest(doc)
     return doc
+
+
+def run_provenance() -> dict[str, Any]:
+    """What every fit file records of the run that wrote it: ratfit's version, the time,
+    Python's and numpy's versions and the command line."""
+    from ratfit._version import __version__
+
+    return {
+        "ratfit_version": __version__,
+        "created": _dt.datetime.now(_dt.UTC).isoformat(timespec="seconds"),
+        "python": platform.python_version(),
+        "numpy": np.__version__,
+        "command": list(sys.argv),
+    }
 
 
 def save_fit(
@@ -308,6 +314,20 @@ def load_fit(path: str | os.PathLike[str], *, trust_edited: bool | None = None) 
         from ratfit.io.alta_function import read_alta_function
 
         return read_alta_function(p).to_saved_fit()
+    trust = _TRUST_EDITED.get() if trust_edited is None else trust_edited
+    return parse_fit(read_fit_document(p), str(p), trust_edited=trust)
+
+
+def read_fit_document(path: str | os.PathLike[str]) -> Any:
+    """The JSON document of a ratfit fit file as it is stored, unchecked (FileFormatError
+    for a missing file, an ALTA function file or one that is not JSON): :func:`parse_fit`
+    checks it. For callers that need the stored document itself (``ratfit brdf merge``)
+    as well as its check."""
+    p = Path(path)
+    if not p.is_file():
+        raise FileFormatError(f"{p}: no such fit file")
+    if _is_alta_function(p):
+        raise FileFormatError(f"{p}: an ALTA function file, not a ratfit fit file")
     try:
         doc = json.loads(p.read_text())
     except UnicodeDecodeError:
@@ -320,8 +340,7 @@ def load_fit(path: str | os.PathLike[str], *, trust_edited: bool | None = None) 
         raise FileFormatError(f"{p}: not a ratfit fit file (JSON nested too deeply)") from None
     except ValueError as exc:  # e.g. an integer of more than 4300 digits
         raise FileFormatError(f"{p}: not a ratfit fit file ({exc})") from None
-    trust = _TRUST_EDITED.get() if trust_edited is None else trust_edited
-    return parse_fit(doc, str(p), trust_edited=trust)
+    return doc
 
 
 def _is_alta_function(p: Path) -> bool:

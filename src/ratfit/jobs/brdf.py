@@ -553,15 +553,20 @@ def merge_brdf_fits(request: BRDFMergeRequest) -> BRDFMergeReport:
     fitted in separate runs, as one sealed document (:mod:`ratfit.brdf.merge`), written
     to the request's output when it has one. Each file is read and checked as
     ``load_fit`` checks it (its digest included) before anything is joined."""
-    import json
-
     from ratfit.brdf.merge import merge_fit_documents
-    from ratfit.io.fitfile import DIGEST_KEY, content_digest, load_fit, save_fit
+    from ratfit.io.fitfile import (
+        DIGEST_KEY,
+        content_digest,
+        parse_fit,
+        read_fit_document,
+        save_fit,
+    )
 
     docs = []
-    for path in request.inputs:
-        load_fit(path, trust_edited=False)  # format, digest, coefficients: refused here
-        docs.append(json.loads(path.read_text()))
+    for path in request.inputs:  # each read once
+        doc = read_fit_document(path)
+        parse_fit(doc, str(path), trust_edited=False)  # format, digest, coefficients
+        docs.append(doc)
     doc = merge_fit_documents(docs, [str(p) for p in request.inputs])
     doc[DIGEST_KEY] = content_digest(doc)
     _check_merged(doc)
