@@ -209,9 +209,8 @@ def brdf_fit(input_path: Path, output: Path | None, fmt: str | None, param: str 
         if output is not None and not report.success:
             click.echo(f"no fit file written: not every channel is verified ({output})", err=True)
         if report.kept is not None:
-            names = [report.segments.names[j] for j in report.verified_channels]
-            click.echo(f"kept the verified channels {', '.join(names)} in {report.kept}",
-                       err=True)
+            click.echo(f"kept the verified channels {', '.join(report.kept_names)} in "
+                       f"{report.kept}", err=True)
     if not report.success:
         hint = report.hint()
         if hint:

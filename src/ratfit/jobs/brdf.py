@@ -223,6 +223,12 @@ class BRDFFitReport:
         return [j for j, r in enumerate(self.results) if r.success]
 
     @property
+    def kept_names(self) -> list[str]:
+        """The names of the channels in :attr:`kept` (none when nothing was kept)."""
+        return [] if self.kept is None else [self.segments.names[j]
+                                             for j in self.verified_channels]
+
+    @property
     def success(self) -> bool:
         return bool(self.results) and all(r.success for r in self.results)
 
@@ -263,9 +269,8 @@ class BRDFFitReport:
         """The ``ratfit brdf fit --json`` object."""
         doc = results_summary(self.results, self.written)
         # the verified channels of a fit that did not all verify, in a file of their own
-        doc["kept"] = None if self.kept is None else {
-            "path": str(self.kept), "channels": [self.segments.names[j]
-                                                 for j in self.verified_channels]}
+        doc["kept"] = None if self.kept is None else {"path": str(self.kept),
+                                                      "channels": self.kept_names}
         doc["parametrization"] = self.parametrization
         doc["parametrization_candidates"] = self.meta["candidates"]
         doc["n_points"] = self.segments.n_points
