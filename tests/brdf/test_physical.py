@@ -215,3 +215,76 @@ def test_repair_adds_spread_bad_points_round_after_round(monkeypatch) -> None:
     spread = F._spread(bad, F.ROUND_POINTS)
     assert np.array_equal(added[1][sizes[0]:], spread)
     assert spread[0, 0] == 0.1 and spread[-1, 0] == 1.2
+
+
+def test_blend_is_the_mix_of_both_fits_scaled_to_mean_q_one() -> None:
+    """A point of the line from a valid fit to its polish: each end scaled to a mean q
+    of 1 at the samples, so a step of 0 and 1 give the two functions themselves and any
+    row linear and homogeneous in (p, q) that both meet (inside a segment) holds."""
+    from ratfit.brdf.fitter import _blend
+
+    start, seg = _candidate(lambda X: 1.0 + X[:, 0] ** 2, lambda X: 2.0 + X[:, 1])
+    end = RationalFunction(start.space, 3.0 * start.p + 0.01 * start.q, 3.0 * start.q)
+    x = seg.x
+    for step, want in ((0.0, start(x)), (1.0, end(x))):
+        mix = _blend(start, end, x, step)
+        assert mix is not None
+        np.testing.assert_allclose(mix(x), want, rtol=1e-12)
+        np.testing.assert_allclose(np.mean(mix.denominator(x)), 1.0, rtol=1e-12)
+    half = _blend(start, end, x, 0.5)
+    assert half is not None
+    p0, q0 = start.numerator(x), start.denominator(x)
+    p1, q1 = end.numerator(x), end.denominator(x)
+    want = (0.5 * p0 / q0.mean() + 0.5 * p1 / q1.mean()) / (
+        0.5 * q0 / q0.mean() + 0.5 * q1 / q1.mean())
+    np.testing.assert_allclose(half(x), want, rtol=1e-12)
+    # both ends inside [min, max] of their values at each sample: so is the mix
+    lo, hi = np.minimum(start(x), end(x)), np.maximum(start(x), end(x))
+    assert np.all(half(x) >= lo - 1e-12) and np.all(half(x) <= hi + 1e-12)
+    assert not np.allclose(half(x), start(x))  # it moved
+    flipped = RationalFunction(start.space, start.p, -start.q)
+    assert _blend(start, flipped, x, 0.5) is None  # q negative on average: no line
+
+
+def test_refuted_polish_of_a_valid_fit_takes_the_half_way_fit(monkeypatch) -> None:
+    """satin_rosaline G: the polish of the search's valid fit was refuted four rounds
+    running (82 s) and the fit stayed unpolished. The fit half way to the refuted
+    polish is verified first and kept; a repair (whose start is not valid) still
+    polishes again with the refuting points."""
+    import ratfit.brdf.fitter as F
+    import ratfit.core.polish as polish
+    from ratfit.brdf.validity import ValidityCheck
+
+    rf, seg = _candidate(lambda X: 1.0 + X[:, 0] ** 2, lambda X: 2.0 + X[:, 1])
+    moved = RationalFunction(rf.space, 1.1 * rf.p, rf.q)
+    bad = np.array([[0.3, 0.5, 0.0]])
+    calls: list[int] = []
+    verified: list[RationalFunction] = []
+
+    def fake_polish(rf_, seg_, j, *, positive_at, **kw):
+        calls.append(len(positive_at))
+        return moved
+
+    def fake_verify(self, cand, seg_, j):
+        ver = F.verify(cand, seg_, channel=j, box_check=False)
+        verified.append(cand)
+        if cand is moved:
+            self._checks[id(cand)] = ValidityCheck(False, 1, -1e-8, -np.inf, bad, "test")
+            return F.replace(ver, verified=False)
+        return F.replace(ver, verified=True)
+
+    monkeypatch.setattr(polish, "polish_fit", fake_polish)
+    monkeypatch.setattr(BRDFFitter, "_verify", fake_verify)
+    fitter = _fitter()
+    fitter._checks, fitter._points = {}, {}
+    out = fitter._polish_rounds(rf, seg, 0, None, start_valid=True)
+    assert out is not None and len(calls) == 1
+    half = F._blend(rf, moved, seg.x, F.BLEND_STEPS[0])
+    assert half is not None
+    np.testing.assert_allclose(out[0](seg.x), half(seg.x), rtol=1e-12)
+    assert verified[0] is moved and verified[1] is out[0]
+    # a repair's start is not valid: no blend, the next round polishes again
+    calls.clear()
+    fitter._checks = {}
+    assert fitter._polish_rounds(rf, seg, 0, None, rounds=2, repair=True) is None
+    assert len(calls) == 2 and calls[1] == calls[0] + 1  # the refuting point added
