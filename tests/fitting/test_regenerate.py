@@ -59,3 +59,31 @@ def test_without_solving_again_every_split_stays_rejected() -> None:
     res = f.fit(_seg()).result_
     assert not res.success
     assert all(v == 1 for v in f.calls.values())
+
+
+def test_a_split_solved_again_starts_from_its_candidates_binding_rows(monkeypatch) -> None:
+    """The second solve of a rejected split is warm-started with the data rows that bound
+    at the first one (satin_rosaline G (113, 112): each solve again had climbed from
+    1 806 rows to 3 900 in 11 rounds), and gives the same fit as without."""
+    import ratfit.fitting.search as search
+
+    real = search.solve_pole_free
+    seen: list[tuple[tuple[int, int], np.ndarray | None, np.ndarray | None]] = []
+
+    def recording(system, n, m, **kw):
+        att, sys_ = real(system, n, m, **kw)
+        seen.append(((n, m), kw.get("warm_rows"), att.active_rows))
+        return att, sys_
+
+    monkeypatch.setattr(search, "solve_pole_free", recording)
+    f = _FirstCandidateRejected(jobs=1).fit(_seg())
+    res = f.result_
+    assert res.success and (res.n, res.m) == (4, 5)
+    at = [i for i, (s, _, _) in enumerate(seen) if s == (4, 5)]
+    assert len(at) >= 2
+    first, again = seen[at[0]], seen[at[1]]
+    assert first[2] is not None and first[2].size > 0
+    binding = first[2][first[2] < 2 * 200]
+    assert again[1] is not None and np.array_equal(again[1], binding)
+    plain = RationalFitter(jobs=1).fit(_seg()).result_
+    np.testing.assert_allclose(res.rational(_seg().x), plain.rational(_seg().x), rtol=1e-9)
