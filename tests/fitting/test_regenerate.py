@@ -87,3 +87,30 @@ def test_a_split_solved_again_starts_from_its_candidates_binding_rows(monkeypatc
     assert again[1] is not None and np.array_equal(again[1], binding)
     plain = RationalFitter(jobs=1).fit(_seg()).result_
     np.testing.assert_allclose(res.rational(_seg().x), plain.rational(_seg().x), rtol=1e-9)
+
+
+def test_one_split_rejected_between_the_samples_skips_the_seeds_form(monkeypatch) -> None:
+    """Given n and m, an answer other than a verified fit asks the seed's form too, but
+    not when the candidate met every segment and the verifier rejected it with new
+    constraint points: the seed's system has none of those rows (ilm_solo_m_68 R: three
+    seed solves of 25-46 s, each candidate invalid). The split is solved again."""
+    import ratfit.fitting.search as search
+
+    forms: list[str] = []
+    real = search.SearchEngine._solve
+
+    def recording(self, system, n, m, form, warm_rows=None):
+        forms.append(form)
+        return real(self, system, n, m, form, warm_rows)
+
+    monkeypatch.setattr(search.SearchEngine, "_solve", recording)
+    f = _FirstCandidateRejected(n=4, m=5, jobs=1).fit(_seg())
+    res = f.result_
+    assert res.success and (res.n, res.m) == (4, 5)
+    assert f.calls[(4, 5)] == 2  # rejected, then verified when solved again
+    assert forms == ["arnoldi", "arnoldi"]
+    # a candidate that misses segments (nothing learnt between the samples): the seed
+    forms.clear()
+    g = RationalFitter(n=2, m=1, jobs=1).fit(_seg())
+    assert not g.result_.success
+    assert "basis" in forms

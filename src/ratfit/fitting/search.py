@@ -924,8 +924,17 @@ class SearchEngine:
         att = out[0]
         if att.timed_out:
             return out
-        verified = out[2] is not None and out[2].verified
-        if att.status == "failed" or (self.second_opinion and not verified):
+        ver = out[2]
+        verified = ver is not None and ver.verified
+        # A candidate that meets every segment, rejected by a verifier that adds
+        # constraint points (a BRDF negative or through a pole between the samples):
+        # the split's system carries the validity rows, the seed's has none, so its
+        # candidate fails the same way (ilm_solo_m_68 R (113, 112): three seed solves of
+        # 25-46 s, each candidate invalid); the split is solved again or repaired (_run).
+        between = (self.parts.constraint_points is not None and ver is not None
+                   and not ver.verified and ver.n_violations == 0
+                   and bool(np.isfinite(ver.linf)))
+        if att.status == "failed" or (self.second_opinion and not verified and not between):
             # A numerical failure in the weighted form (or, for a single split, any
             # answer but a verified fit): the seed's form decides when it can.
             retry = self._seed(n, m, warm_rows)
