@@ -161,9 +161,9 @@ SEARCH_POINTS = 200
 # The polish of a valid fit whose first answer is refuted tries the points a half and a
 # quarter of the way to it before polishing again with the refuting points added: every
 # linear row (segments, q > 0, ceiling, floor) holds on that whole line, q there is a
-# mix of two positive-at-the-data denominators, and one proof costs what one polish pass
-# costs a tenth of. RGL's satin_rosaline G (113, 112): four refuted polish rounds, 82 of
-# the fit's 160 s, for no polish at all.
+# mix of two positive-at-the-data denominators, and one proof costs about a tenth of a
+# polish round. RGL's satin_rosaline G (113, 112): four refuted polish rounds, 82 of the
+# fit's 160 s, for no polish at all.
 BLEND_STEPS = (0.5, 0.25)
 # Every part of a channel's fit is bounded by QP solves, not seconds, so that the same
 # command gives the same fit on any load and with any --jobs: the search (its repairs
