@@ -248,9 +248,10 @@ def test_blend_is_the_mix_of_both_fits_scaled_to_mean_q_one() -> None:
 
 def test_refuted_polish_of_a_valid_fit_takes_the_half_way_fit(monkeypatch) -> None:
     """satin_rosaline G: the polish of the search's valid fit was refuted four rounds
-    running (82 s) and the fit stayed unpolished. The fit half way to the refuted
-    polish is verified first and kept; a repair (whose start is not valid) still
-    polishes again with the refuting points."""
+    running (82 s) and the fit stayed unpolished. The fit half way to the first refuted
+    polish is verified and kept where no later round verifies; a later round's full
+    polish that verifies wins over it; a repair (whose start is not valid) takes no
+    blend."""
     import ratfit.brdf.fitter as F
     import ratfit.core.polish as polish
     from ratfit.brdf.validity import ValidityCheck
@@ -278,11 +279,19 @@ def test_refuted_polish_of_a_valid_fit_takes_the_half_way_fit(monkeypatch) -> No
     fitter = _fitter()
     fitter._checks, fitter._points = {}, {}
     out = fitter._polish_rounds(rf, seg, 0, None, start_valid=True)
-    assert out is not None and len(calls) == 1
+    assert out is not None and len(calls) == 4  # every round refuted: the blend
     half = F._blend(rf, moved, seg.x, F.BLEND_STEPS[0])
     assert half is not None
     np.testing.assert_allclose(out[0](seg.x), half(seg.x), rtol=1e-12)
     assert verified[0] is moved and verified[1] is out[0]
+    # the second round's polish verifies: it, not the blend of the first
+    better = RationalFunction(rf.space, 1.05 * rf.p, rf.q)
+    answers = iter([moved, better])
+    monkeypatch.setattr(polish, "polish_fit", lambda *a, **kw: next(answers))
+    fitter._checks = {}
+    out = fitter._polish_rounds(rf, seg, 0, None, start_valid=True)
+    assert out is not None and out[0] is better
+    monkeypatch.setattr(polish, "polish_fit", fake_polish)
     # a repair's start is not valid: no blend, the next round polishes again
     calls.clear()
     fitter._checks = {}
