@@ -47,7 +47,7 @@ TABLE_SUBSET_HINT = (
     "a subset of the table drawn where random direction pairs fall, in a frame that is "
     f"not mirror-symmetric, may ({TABLE_SUBSET_OPTIONS}: 675 numbers, verified on those "
     "5000 cells only and proved valid at every pair of directions; RGL's satin_rosaline "
-    "fits so in about 4 minutes on two cores)")
+    "fits so in about 5 minutes on two cores)")
 
 
 @dataclass(frozen=True)
