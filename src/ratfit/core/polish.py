@@ -604,8 +604,8 @@ def _solve_band(D: _Design, lo: Array, hi: Array, qp: QPStep, tau: float,
     slack = band.data_residuals(*D.values(c_start))
     active = np.zeros(band.count, dtype=bool)
     active[smallest(slack, start_rows)] = True
-    # rows added a round (k coefficients): the most-missed 2 k first, 1.5x more each
-    # round, at most 80 k.
+    # rows added a round (k coefficients): the most-missed max(200, 2 k) first, 1.5x more
+    # each round, at most 10 max(200, 8 k) (the cap of before, when 8 k came first).
     # DAQP's time grows faster than its rows (satin_rosaline G (113, 112), 140 302 rows
     # of which ~220 bind: 0.03 s at 4 000 rows, 1.3 s at 19 000), so small first batches
     # pay: 8k first gave 1.2-1.8 s of QPs a cut-off, ending at 10 000 rows; 2k, 0.5-0.7 s

@@ -753,6 +753,14 @@ def _is_int(v: object) -> bool:
 Candidate = tuple[Attempt, RationalFunction | None, Verification | None]
 
 
+def _rejected_between(ver: Verification | None) -> bool:
+    """A candidate that met every segment (finite values) and was still not verified:
+    the verifier's other checks (a BRDF negative or through a pole between the samples)
+    rejected it."""
+    return (ver is not None and not ver.verified and not ver.n_violations
+            and bool(np.isfinite(ver.linf)))
+
+
 class SearchEngine:
     """One channel's search: cached attempts and their verifications.
 
@@ -832,8 +840,7 @@ class SearchEngine:
         verifier's other checks (a BRDF negative or through a pole between the
         samples) replaced by ``parts.repair``'s verified one, when there is one."""
         att, rf, ver = out
-        if (self.parts.repair is None or rf is None or ver is None or ver.verified
-                or ver.n_violations or not np.isfinite(ver.linf)
+        if (self.parts.repair is None or rf is None or not _rejected_between(ver)
                 or (self.deadline is not None and time.perf_counter() > self.deadline)):
             return out
         # the repair's QP solves count toward the search's budget, like its own
@@ -863,8 +870,7 @@ class SearchEngine:
             self.parts.regenerate)
         for _ in range(again_at_most):
             att, _, ver = out
-            if (att.timed_out or att.status != "feasible" or ver is None or ver.verified
-                    or ver.n_violations or not np.isfinite(ver.linf)):
+            if att.timed_out or att.status != "feasible" or not _rejected_between(ver):
                 break
             assert count is not None  # again_at_most is 0 without it
             now = count(self.channel)
@@ -931,9 +937,7 @@ class SearchEngine:
         # the split's system carries the validity rows, the seed's has none, so its
         # candidate fails the same way (ilm_solo_m_68 R (113, 112): three seed solves of
         # 25-46 s, each candidate invalid); the split is solved again or repaired (_run).
-        between = (self.parts.constraint_points is not None and ver is not None
-                   and not ver.verified and ver.n_violations == 0
-                   and bool(np.isfinite(ver.linf)))
+        between = self.parts.constraint_points is not None and _rejected_between(ver)
         if att.status == "failed" or (self.second_opinion and not verified and not between):
             # A numerical failure in the weighted form (or, for a single split, any
             # answer but a verified fit): the seed's form decides when it can.
