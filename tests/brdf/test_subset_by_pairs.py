@@ -101,9 +101,10 @@ def test_a_subset_by_pairs_needs_a_merl_table_and_max_points(shared_data: Path,
 
 def test_a_table_without_a_fit_is_pointed_at_a_subset_by_pairs(tmp_path: Path,
                                                                monkeypatch) -> None:
-    """A full MERL table with no verified fit (cell noise, no time to search) gets the
-    hint of the subset options that fitted RGL's satin_rosaline, and those options make the
-    request they say; a table's subset that fails does not repeat the hint."""
+    """A fit of every cell of a MERL table (``--max-points`` above its cells) with no
+    verified fit (cell noise, no time to search) gets the hint of the table defaults,
+    and those options make the request they say; a table's subset that fails does not
+    repeat the hint."""
     import shlex
 
     import ratfit.jobs
@@ -114,7 +115,8 @@ def test_a_table_without_a_fit_is_pointed_at_a_subset_by_pairs(tmp_path: Path,
     merl = tmp_path / "t.binary"
     write_merl(merl, merl_from_function(lambda L, V: 10.0 ** rng.uniform(-3, 0, (len(L), 3))))
     out = tmp_path / "fit.json"
-    full = run_cli("brdf", "fit", merl, "--time-limit", "0", "-o", out)
+    full = run_cli("brdf", "fit", merl, "--max-points", "2000000", "--time-limit", "0",
+                   "-o", out)
     said = " ".join(full.stderr.split())
     assert full.exit_code == 1 and not out.exists(), full.output
     assert "a subset of the table drawn where random direction pairs fall" in said
@@ -123,6 +125,10 @@ def test_a_table_without_a_fit_is_pointed_at_a_subset_by_pairs(tmp_path: Path,
                   "--time-limit", "0", "-o", out)
     assert sub.exit_code == 1 and not out.exists(), sub.output
     assert "hint:" in sub.stderr and "--subset-by" not in sub.stderr.split("hint:")[-1]
+    # the table defaults' other parts filled in, R widened alone as far as they go
+    assert ("no verified fit at the table defaults (n = 113, m = 112, each such channel "
+            "widened alone up to y +- 0.9 y): more coefficients (--n 153 --m 152)"
+            in " ".join(sub.stderr.split()))
     # the options as the hint prints them: the request a user gets by pasting them
     asked = []
 

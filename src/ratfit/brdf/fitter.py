@@ -487,7 +487,7 @@ def fit_brdf(ds: Dataset, *, dt: float | None = None, abs_width: AbsWidth = None
              floor_rel: float | None = None, cosine: bool = False, clamp: float | None = None,
              positive_q: bool = False, consistent: bool | None = None,
              shared_denominator: bool = False, values: str = "auto",
-             **fitter_params: Any):
+             widen_alone: bool = False, **fitter_params: Any):
     """Fit every channel of a BRDF dataset; returns (fitter, segments, brdf_meta).
 
     ``abs_width="auto"``: each channel's floor is its noise level (:func:`noise_floors`),
@@ -504,6 +504,8 @@ def fit_brdf(ds: Dataset, *, dt: float | None = None, abs_width: AbsWidth = None
     numerator; no channel is widened alone). ``values="log"``: fit log values, so the fit
     is exp(p / q) (:data:`~ratfit.brdf.options.VALUES`; "auto": :func:`resolve_values`),
     with noise-level floors when no width is given (:func:`log_floor_default`).
+    ``widen_alone``: the widths given are ratfit's (a MERL table's defaults), so a channel
+    with no verified fit is widened alone as default widths are, at a given size too.
     ``brdf_meta`` is the ``"brdf"`` block of the fit file.
     """
     from ratfit.brdf.consistency import consistent_segments
@@ -595,10 +597,11 @@ def fit_brdf(ds: Dataset, *, dt: float | None = None, abs_width: AbsWidth = None
     fitter.fit(seg)
     channel_dt = starts if starts is not None and len(set(starts)) > 1 else None
     # (one channel at default widths is widened with its frame: fit_brdf_auto's _widen)
-    if (((default_widths and seg.n_channels > 1) or dt_chosen) and dt is not None
-            and not max_given and not shared_denominator):
+    if (((default_widths and seg.n_channels > 1) or dt_chosen or widen_alone)
+            and dt is not None and not max_given and not shared_denominator):
         # not under a size bound of the caller's (as in fit_brdf_auto's widening)
-        seg, channel_dt = _widen_channels(fitter, seg, starts or dt, floors, around)
+        seg, channel_dt = _widen_channels(fitter, seg, starts or dt, floors, around,
+                                          failed_too=widen_alone)
         fitter.segments_ = seg
     sub = ds.meta.get("subset")
     if sub:
@@ -951,8 +954,8 @@ def _no_candidate(fitter: RationalFitter) -> bool:
 
 
 def _widen_channels(fitter: BRDFFitter, seg: Segments, dt: float | Sequence[float],
-                    floors: Array | None, around: Neighbours | None
-                    ) -> tuple[Segments, list[float] | None]:
+                    floors: Array | None, around: Neighbours | None, *,
+                    failed_too: bool = False) -> tuple[Segments, list[float] | None]:
     """Default widths: each channel whose search had no candidate at all (every split it
     tested infeasible, nothing cut short) is fitted again alone at :func:`widened_dt`
     widths until it has one, up to :data:`MAX_DEFAULT_DT` (under ratfit's size bound,
@@ -962,7 +965,10 @@ def _widen_channels(fitter: BRDFFitter, seg: Segments, dt: float | Sequence[floa
     replaced) and the width of each channel, or None when none was widened. ``floors``:
     each channel's absolute floor (from the noise level or the fraction of its peak).
     ``around``: the samples' :func:`~ratfit.brdf.consistency.sample_neighbours` when
-    the segments are made consistent, else None.
+    the segments are made consistent, else None. ``failed_too``: a channel whose
+    candidates all failed is widened under any size (a MERL table's defaults, whose
+    size is fixed: ilm_solo_m_68's R at +-22 % has a candidate whose q dips below 0
+    inside the box, and verifies at +-30 %).
 
     Measured noise differs by channel: garnet_red's R verifies at 0.06 with a 1e-3 floor
     while its G and B (noise 12-19 % of their diffuse values) have no candidate up to
@@ -975,12 +981,15 @@ def _widen_channels(fitter: BRDFFitter, seg: Segments, dt: float | Sequence[floa
     # candidates all failed (status 2) is widened too, as the search would have gone on
     # to larger sizes without the bound
     cap = fitter.get_params().get("max_total")
-    up_to = "" if cap is None else f" up to {int(cap)} coefficients"
+    n, m = fitter.get_params().get("n"), fitter.get_params().get("m")
+    up_to = (f" up to {int(cap)} coefficients" if cap is not None else
+             f" at n = {n}, m = {m}" if n is not None else "")
     lo, hi = seg.lo.copy(), seg.hi.copy()
     for j, res in enumerate(fitter.results_):
         d = widths[j]
         while (not res.success and not res.time_limited and d < MAX_DEFAULT_DT
-               and (res.status == 1 or (cap is not None and res.status == 2))):
+               and (res.status == 1 or ((cap is not None or failed_too)
+                                         and res.status == 2))):
             why = "no candidate" if res.status == 1 else "no verified fit"
             d = widened_dt(d)
             one = _one_channel(seg, j, d, floors)

@@ -39,15 +39,83 @@ COLORS = ("rgb", "xyz", "spectral")
 # 6-D Cartesian pairs of an isotropic material (Cornell files): 3-D angles carry the
 # same information with no constant column and far fewer coefficients.
 ISOTROPIC_DEFAULT = {"CARTESIAN": "ISOTROPIC_TV_TL_DPHI"}
-#: A MERL table with no verified fit: the options that fitted RGL's satin_rosaline
-#: (docs/benchmarks/brdf.md, "A subset drawn by direction pairs"), as the hint says them.
-TABLE_SUBSET_OPTIONS = ("--param RUSIN_TH_TD_FOLD --max-points 5000 --subset-by pairs "
-                        "--values log --dt 0.22 --abs-width 1e-3 --n 113 --m 112")
+#: The parts of :class:`TableDefaults`, each replaced by the options a request gives.
+TABLE_GROUPS = ("frame", "subset", "values", "widths", "size")
+
+
+@dataclass(frozen=True)
+class TableDefaults:
+    """How a full MERL table is fitted where the request leaves it open.
+
+    A measured table is rough where no smooth rational follows it (cells of 0 and steps
+    next to the horizon, phi_d dependence at the mirror direction, no mirror symmetry:
+    docs/benchmarks/brdf.md, "RGL materials as MERL tables"), so fitting every cell, the
+    default for other files, verified none of RGL's tables at any width. A subset drawn
+    where uniformly random direction pairs fall, in a frame that keeps reciprocity and
+    isotropy at the mirror but not mirror symmetry, with log values and the networks'
+    size (675 numbers in three channels), verified and proved 5 of 7 RGL tables tried
+    (2026-12-01); a channel with no verified fit is then widened alone, at the same
+    size, as ratfit's widths always are. Each group of options a request gives
+    replaces its part: ``--param`` the frame, ``--max-points`` the subset,
+    ``--values`` the value form, any width the widths, any size the size.
+    """
+
+    parametrization: str = "RUSIN_TH_TD_FOLD"
+    max_points: int = 5000
+    subset_by: str = "pairs"
+    values: str = "log"
+    dt: float = 0.22
+    abs_width: float = 1e-3
+    n: int = 113
+    m: int = 112
+
+    def words(self, groups: tuple[str, ...] = TABLE_GROUPS) -> str:
+        """The defaults of ``groups`` as ``ratfit brdf fit`` options."""
+        said = {"frame": f"--param {self.parametrization}",
+                "subset": f"--max-points {self.max_points} --subset-by {self.subset_by}",
+                "values": f"--values {self.values}",
+                "widths": f"--dt {self.dt:g} --abs-width {self.abs_width:g}",
+                "size": f"--n {self.n} --m {self.m}"}
+        return " ".join(said[g] for g in groups)
+
+    def apply(self, req: BRDFFitRequest) -> tuple[BRDFFitRequest, tuple[str, ...]]:
+        """``req`` with what it leaves open filled in, and the groups filled ("frame",
+        "subset", "values", "widths", "size")."""
+        o = req.options
+        filled: list[str] = []
+        changes: dict[str, Any] = {}
+        opts: dict[str, Any] = {}
+        if req.parametrization is None:
+            filled.append("frame")
+            changes["parametrization"] = self.parametrization
+        if req.max_points is None:
+            filled.append("subset")
+            changes["max_points"] = self.max_points
+            changes["subset_by"] = self.subset_by
+        shared = req.shared_denominator  # one q refuses log values and n
+        if o.values == "auto" and not shared:
+            filled.append("values")
+            opts["values"] = self.values
+        if req.dt is None and req.abs_width is None and req.floor_rel is None:
+            filled.append("widths")
+            changes["dt"], changes["abs_width"] = self.dt, self.abs_width
+        if o.n is None and o.total is None and o.max_total is None and not shared:
+            filled.append("size")
+            opts["n"], opts["m"] = self.n, self.m
+        if opts:
+            changes["options"] = o.replace(**opts)
+        return replace(req, **changes), tuple(filled)
+
+
+#: What ``ratfit brdf fit`` fits a full MERL table with by default.
+TABLE_DEFAULTS = TableDefaults()
+#: The table defaults as options (a fit of every cell with no verified fit names them).
+TABLE_SUBSET_OPTIONS = TABLE_DEFAULTS.words()
 TABLE_SUBSET_HINT = (
     "a subset of the table drawn where random direction pairs fall, in a frame that is "
-    f"not mirror-symmetric, may ({TABLE_SUBSET_OPTIONS}: 675 numbers, verified on those "
-    "5000 cells only and proved valid at every pair of directions; RGL's satin_rosaline "
-    "fits so in about 5 minutes on two cores)")
+    f"not mirror-symmetric, may (ratfit's default for a MERL table, {TABLE_SUBSET_OPTIONS}: "
+    "675 numbers, verified on those 5000 cells only and proved valid at every pair of "
+    "directions; RGL's satin_rosaline fits so in about 5 minutes on two cores)")
 
 
 @dataclass(frozen=True)
@@ -216,6 +284,8 @@ class BRDFFitReport:
     written: Path | None = None
     input_channels: tuple[str, ...] = ()  # every channel of the input, in its order
     kept: Path | None = None  # the verified channels of a fit that did not all verify
+    # the groups of TABLE_DEFAULTS a MERL table's request left open ("frame", "size", ...)
+    table_defaults: tuple[str, ...] = ()
 
     @property
     def verified_channels(self) -> list[int]:
@@ -275,6 +345,9 @@ class BRDFFitReport:
         doc["parametrization_candidates"] = self.meta["candidates"]
         doc["n_points"] = self.segments.n_points
         doc["verified_on"] = self.meta["verified_on"]
+        # the options a MERL table's defaults filled in (None: none)
+        doc["table_defaults"] = (TABLE_DEFAULTS.words(self.table_defaults)
+                                 if self.table_defaults else None)
         if self.subset:
             doc["subset"] = dict(self.subset)
             doc["status"] = self.status()
@@ -298,6 +371,10 @@ class BRDFFitReport:
         if self.frames_tried == 1 and chosen and self.request.parametrization is None:
             out.append(f"parametrization: {chosen} (chosen for the file's {own}; "
                        "--param overrides)")
+        if self.table_defaults:
+            out.append(f"a MERL table: {TABLE_DEFAULTS.words(self.table_defaults)} (ratfit's "
+                       "table defaults; verified on the subset's cells only; each option "
+                       "given replaces its part)")
         if self.frames_tried > 1:
             out.append(f"parametrization: {self.parametrization} ("
                        + "; ".join(_candidate_note(c) for c in self.meta["candidates"])
@@ -359,7 +436,31 @@ class BRDFFitReport:
             parts.append(said + out_of + "may give one")
         if self.table and not self.subset:
             parts.append(TABLE_SUBSET_HINT)
+        elif self.table_defaults:
+            parts.append(self._table_hint())
         return "hint: " + "; ".join(parts) if parts else None
+
+
+    def _table_hint(self) -> str:
+        """What may fit a MERL table where its defaults did not: more time or QP solves
+        when the search was cut short, else more coefficients (a channel at ratfit's
+        widths was already widened alone as far as they go)."""
+        from ratfit.brdf.fitter import MAX_DEFAULT_DT
+
+        failed = [r for r in self.results if not r.success]
+        if any(r.time_limited for r in failed):
+            return ("the search was cut short: a longer --time-limit or a larger "
+                    "--work-limit may give one")
+        o = self.request.options
+        widened = (f", each such channel widened alone up to y +- {MAX_DEFAULT_DT:g} y"
+                   if "widths" in self.table_defaults else "")
+        size = (f"n = {o.n}, m = {o.m}" if o.n is not None else
+                f"up to {o.max_total} coefficients" if o.max_total is not None else
+                "the size searched")
+        more = (f"--n {o.n + 40} --m {o.m + 40}" if o.n is not None and o.m is not None
+                else "--max-total N")
+        return (f"no verified fit at the table defaults ({size}{widened}): more "
+                f"coefficients ({more}) or more cells (--max-points) may give one")
 
 
 def _held_out_size_note(sizes: list[dict[str, Any] | None], names: list[str]) -> str:
@@ -428,6 +529,10 @@ def fit_brdf_file(request: BRDFFitRequest | str | Path) -> BRDFFitReport:
     with clock.phase("read"):
         samples = read_brdf(req.input, fmt=req.format)
         digest = file_sha256(req.input)
+    filled: tuple[str, ...] = ()
+    if samples.meta.get("format") == "merl":
+        # a full table: what the request leaves open, ratfit's table defaults fill
+        req, filled = TABLE_DEFAULTS.apply(req)
     with clock.phase("frames"):
         def frame(name: str | None) -> Dataset:
             return samples_dataset(samples, name, channels=list(req.channels) or None,
@@ -444,6 +549,9 @@ def fit_brdf_file(request: BRDFFitRequest | str | Path) -> BRDFFitReport:
         datasets = [own_ds if name == own else frame(name) for name in names]
     with clock.phase("fit"):
         kw = {k: v for k, v in o.params().items() if k not in ("parametrization", "used_coords")}
+        if "widths" in filled:
+            # ratfit's widths: a channel with no verified fit is widened alone
+            kw["widen_alone"] = True
         fitter, seg, meta = fit_brdf_auto(datasets, dt=req.dt, abs_width=req.abs_width,
                                           floor_rel=req.floor_rel, cosine=req.cosine,
                                           clamp=req.clamp,
@@ -451,7 +559,8 @@ def fit_brdf_file(request: BRDFFitRequest | str | Path) -> BRDFFitReport:
     ds = fitted_frame(datasets, meta)
     report = BRDFFitReport(req, fitter.results_, seg, meta, digest, own, len(datasets),
                            subset=ds.meta.get("subset"), table=table,
-                           input_channels=channel_names_of(samples, req.color))
+                           input_channels=channel_names_of(samples, req.color),
+                           table_defaults=filled)
     if req.holdout is not None:
         from ratfit.brdf.holdout import cross_validate
 
