@@ -968,7 +968,7 @@ def _widen_channels(fitter: BRDFFitter, seg: Segments, dt: float | Sequence[floa
     the segments are made consistent, else None. ``failed_too``: a channel whose
     candidates all failed is widened under any size (a MERL table's defaults, whose
     size is fixed: ilm_solo_m_68's R at +-22 % has a candidate whose q dips below 0
-    inside the box, and verifies at +-30 %).
+    inside the box, and verifies at the next width, +-33 %).
 
     Measured noise differs by channel: garnet_red's R verifies at 0.06 with a 1e-3 floor
     while its G and B (noise 12-19 % of their diffuse values) have no candidate up to

@@ -440,7 +440,6 @@ class BRDFFitReport:
             parts.append(self._table_hint())
         return "hint: " + "; ".join(parts) if parts else None
 
-
     def _table_hint(self) -> str:
         """What may fit a MERL table where its defaults did not: more time or QP solves
         when the search was cut short, else more coefficients (a channel at ratfit's
