@@ -61,7 +61,10 @@ def _split_channels(values: tuple[str, ...]) -> list[str]:
                    "STARK_2D); default: the file's own (ISOTROPIC_TV_TL_DPHI for Cartesian "
                    "pairs), and for isotropic light and view angles the half-vector frame "
                    "RUSIN_TH_TD_SYM first (RUSIN_TH_TD_PD with --cosine), keeping the "
-                   "better verified fit (narrower segments, then fewer coefficients).")
+                   "better verified fit (narrower segments, then fewer coefficients); a "
+                   "MERL table: RUSIN_TH_TD_FOLD (its table defaults: a subset of 5000 "
+                   "cells by direction pairs, --values log, --dt 0.22 --abs-width 0.001, "
+                   "--n 113 --m 112; each option given replaces its part).")
 @click.option("--dt", type=float,
               help="Relative segment width: [(1-dt) y, (1+dt) y]. Without --dt, --abs-width "
                    "and --floor-rel: the file's own intervals, else 0.05 (widened where "
@@ -98,7 +101,9 @@ def _split_channels(values: tuple[str, ...]) -> list[str]:
 @click.option("--color", type=click.Choice(["rgb", "xyz", "spectral"]), default="rgb",
               show_default=True, help="Spectral (Cornell) data: CIE 1931 -> linear sRGB, XYZ, "
                                       "or the bands as they are.")
-@click.option("--max-points", type=int, help="Fit a random subset of this many samples.")
+@click.option("--max-points", type=int,
+              help="Fit a random subset of this many samples (a MERL table: 5000 drawn by "
+                   "direction pairs by default; more than its cells fits every cell).")
 @click.option("--subset-by", type=click.Choice(["samples", "pairs", "energy"]),
               default="samples", show_default=True,
               help="How --max-points draws: every sample alike; (a MERL table) each cell "
