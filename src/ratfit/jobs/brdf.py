@@ -53,7 +53,7 @@ class TableDefaults:
     default for other files, verified none of RGL's tables at any width. A subset drawn
     where uniformly random direction pairs fall, in a frame that keeps reciprocity and
     isotropy at the mirror but not mirror symmetry, with log values and the networks'
-    size (675 numbers in three channels), verified and proved 8 of 9 RGL tables tried
+    size (675 numbers in three channels), verified and proved 10 of 11 RGL tables tried
     (2026-12-01); a channel with no verified fit is then widened alone, at the same
     size, as ratfit's widths always are. Each group of options a request gives
     replaces its part: ``--param`` the frame, ``--max-points`` the subset,
