@@ -980,8 +980,8 @@ def _widen_channels(fitter: BRDFFitter, seg: Segments, dt: float | Sequence[floa
     # ratfit's size bound (a caller's turns widening off): within it, a channel whose
     # candidates all failed (status 2) is widened too, as the search would have gone on
     # to larger sizes without the bound
-    cap = fitter.get_params().get("max_total")
-    n, m = fitter.get_params().get("n"), fitter.get_params().get("m")
+    params = fitter.get_params()
+    cap, n, m = params.get("max_total"), params.get("n"), params.get("m")
     up_to = (f" up to {int(cap)} coefficients" if cap is not None else
              f" at n = {n}, m = {m}" if n is not None else "")
     lo, hi = seg.lo.copy(), seg.hi.copy()
@@ -995,7 +995,7 @@ def _widen_channels(fitter: BRDFFitter, seg: Segments, dt: float | Sequence[floa
             one = _one_channel(seg, j, d, floors)
             if around is not None:
                 one, _ = consistent_segments(one, neighbours=around)
-            alone = type(fitter)(**fitter.get_params()).fit(one)
+            alone = type(fitter)(**params).fit(one)
             res = replace(alone.results_[0],
                           message=f"{alone.results_[0].message}; segments widened to "
                                   f"+- {d:.3g} y for this channel alone ({why} at "
