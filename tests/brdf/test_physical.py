@@ -297,3 +297,32 @@ def test_refuted_polish_of_a_valid_fit_takes_the_half_way_fit(monkeypatch) -> No
     fitter._checks = {}
     assert fitter._polish_rounds(rf, seg, 0, None, rounds=2, repair=True) is None
     assert len(calls) == 2 and calls[1] == calls[0] + 1  # the refuting point added
+
+
+def test_the_dense_checks_signs_are_the_exact_evaluations() -> None:
+    """The offset grid is screened with BLAS sums (not the fixed order the verdicts and
+    the exports use); where q or p is within SCREEN_MARGIN of zero the fixed-order
+    values replace the screened ones, so every sign the check reads is the exact one."""
+    from ratfit.brdf.validity import SCREEN_MARGIN, _grid_values
+    from ratfit.core.arnoldi import ArnoldiBasis
+
+    space = PolynomialSpace("legendre", [[-1.0, 1.0]] * 3, "total")
+    rng = np.random.default_rng(3)
+    t = rng.uniform(-1, 1, (3000, 3))
+    basis, Q = ArnoldiBasis.build(space, t, np.ones(len(t)), 35)
+    # q = (t0 - 0.3)^2 + 1e-9 (its smallest values 1e-9 of max), p = t1 (both signs)
+    q = Q.T @ ((t[:, 0] - 0.3) ** 2 + 1e-9)
+    p = Q.T @ t[:, 1]
+    rf = RationalFunction(space, p, q, p_basis=basis, q_basis=basis)
+    c = rng.uniform(-1, 1, (100_000, 3))
+    c[:2000, 0] = 0.3 + rng.uniform(-1e-6, 1e-6, 2000)  # where q is within 1e-6 of 0
+    qg, pg = _grid_values(rf, rf.numerator, rf.numerator, c)
+    qe, pe = rf.denominator(c), rf.numerator(c)
+    assert np.array_equal(np.sign(qg), np.sign(qe)) and np.array_equal(np.sign(pg), np.sign(pe))
+    near = (np.abs(qe) <= SCREEN_MARGIN / 2 * np.abs(qe).max()) | (
+        np.abs(pe) <= 2 * SCREEN_MARGIN * np.abs(pe).max())
+    assert near.sum() > 2000  # the q dip, and p's zero line t1 = 0
+    assert np.array_equal(qg[near], qe[near]) and np.array_equal(pg[near], pe[near])
+    # elsewhere the screened values are the same numbers but for the order of the sums
+    assert np.max(np.abs(qg - qe)) <= 1e-12 * np.abs(qe).max()
+    assert not np.array_equal(qg, qe)  # (the screen is what computed them)
