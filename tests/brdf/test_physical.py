@@ -301,9 +301,10 @@ def test_refuted_polish_of_a_valid_fit_takes_the_half_way_fit(monkeypatch) -> No
 
 def test_the_dense_checks_signs_are_the_exact_evaluations() -> None:
     """The offset grid is screened with BLAS sums (not the fixed order the verdicts and
-    the exports use); where q or p is within SCREEN_MARGIN of zero the fixed-order
-    values replace the screened ones, so every sign the check reads is the exact one."""
-    from ratfit.brdf.validity import SCREEN_MARGIN, _grid_values
+    the exports use); where q or p is within SCREEN_MARGIN of zero, and at their
+    smallest and largest values, the fixed-order values replace the screened ones, so
+    every sign the check reads, its compass search's starts and its scales are exact."""
+    from ratfit.brdf.validity import SCREEN_EXTREMES, SCREEN_MARGIN, _grid_values
     from ratfit.core.arnoldi import ArnoldiBasis
 
     space = PolynomialSpace("legendre", [[-1.0, 1.0]] * 3, "total")
@@ -323,6 +324,12 @@ def test_the_dense_checks_signs_are_the_exact_evaluations() -> None:
         np.abs(pe) <= 2 * SCREEN_MARGIN * np.abs(pe).max())
     assert near.sum() > 2000  # the q dip, and p's zero line t1 = 0
     assert np.array_equal(qg[near], qe[near]) and np.array_equal(pg[near], pe[near])
+    # where the compass search starts and the scales come from: the exact numbers too
+    order = np.argsort(qe)
+    ends = np.concatenate([order[:SCREEN_EXTREMES // 2], order[-SCREEN_EXTREMES // 2:]])
+    assert np.array_equal(qg[ends], qe[ends])
+    ends = np.argsort(pe)[-SCREEN_EXTREMES // 2:]
+    assert np.array_equal(pg[ends], pe[ends])
     # elsewhere the screened values are the same numbers but for the order of the sums
     assert np.max(np.abs(qg - qe)) <= 1e-12 * np.abs(qe).max()
     assert not np.array_equal(qg, qe)  # (the screen is what computed them)

@@ -265,10 +265,14 @@ def check_validity(rf: RationalFunction, param: str, domain: ArrayLike | None = 
 #: The offset grid's values are first taken through BLAS products
 #: (:meth:`~ratfit.core.arnoldi.ArnoldiBasis.evaluate_blas`: at 148 724 pairs and 112
 #: functions 0.10 s against 0.86 s for the fixed order, the values 1e-15 of max|q|
-#: apart); wherever q or the second function is within SCREEN_MARGIN of its largest
-#: magnitude from zero, or not finite, the fixed-order values replace them, so every
-#: sign the verdict reads is the one the exact evaluation gives.
+#: apart). The fixed-order values replace them wherever the check reads them closely:
+#: within SCREEN_MARGIN of zero (or not finite), where a sign could depend on the order
+#: of the sums, and at the SCREEN_EXTREMES smallest and largest values of q, of the
+#: second function and of their ratio, where the compass search's starts and the
+#: scales come from. The check then reads the numbers the fixed order gives, and a
+#: search takes the same path as with the fixed order everywhere.
 SCREEN_MARGIN = 1e-6
+SCREEN_EXTREMES = 256
 
 
 class _Screened:
@@ -287,21 +291,32 @@ class _Screened:
         return self.rf.denominator(x) if b is None else b.evaluate_blas(x, self.rf.q)
 
 
+def _extremes(v: Array, k: int) -> NDArray[np.int64]:
+    """Indices of the ``k`` smallest and ``k`` largest of ``v`` (NaN counts as largest)."""
+    if len(v) <= 2 * k:
+        return np.arange(len(v))
+    return np.concatenate([np.argpartition(v, k)[:k], np.argpartition(v, len(v) - k)[-k:]])
+
+
 def _grid_values(rf: RationalFunction, second: Callable[[Array], Array] | None,
                  screened: Callable[[Array], Array] | None, c: Array) -> tuple[Array, Array]:
     """q and the second function (|q| without one: p counts as positive wherever q is)
-    at the grid ``c``: screened values, and the exact ones wherever a sign could
-    depend on the order of the sums (:data:`SCREEN_MARGIN`)."""
+    at the grid ``c``: screened values, and the exact ones wherever the check reads
+    them closely (:data:`SCREEN_MARGIN`, :data:`SCREEN_EXTREMES`)."""
     q = _Screened(rf).denominator(c)
     pv = screened(c) if screened is not None else np.abs(q)
-    with np.errstate(invalid="ignore"):
+    with np.errstate(all="ignore"):
         qs = float(np.nanmax(np.abs(q), initial=0.0))
         ps = float(np.nanmax(np.abs(pv), initial=0.0))
         near = ~(np.abs(q) > SCREEN_MARGIN * qs) | ~(np.abs(pv) > SCREEN_MARGIN * ps)
-    if near.any():
-        at = c[near]
-        q[near] = rf.denominator(at)
-        pv[near] = second(at) if second is not None else np.abs(q[near])
+        ratio = np.abs(pv / q)
+    close = np.flatnonzero(near)
+    k = SCREEN_EXTREMES
+    close = np.unique(np.concatenate([close, _extremes(q, k), _extremes(pv, k),
+                                      _extremes(np.where(np.isfinite(ratio), ratio, 0.0), k)]))
+    at = c[close]
+    q[close] = rf.denominator(at)
+    pv[close] = second(at) if second is not None else np.abs(q[close])
     return q, pv
 
 
