@@ -333,3 +333,27 @@ def test_the_dense_checks_signs_are_the_exact_evaluations() -> None:
     # elsewhere the screened values are the same numbers but for the order of the sums
     assert np.max(np.abs(qg - qe)) <= 1e-12 * np.abs(qe).max()
     assert not np.array_equal(qg, qe)  # (the screen is what computed them)
+
+
+def test_the_screened_check_finds_what_the_exact_one_finds(monkeypatch) -> None:
+    """check_validity of a candidate in data-orthonormal bases with a pole between the
+    samples: the same verdict, bad points (in the same order), minima and count as the
+    check with every grid value in the fixed order (a search then takes the same path)."""
+    from ratfit.core.arnoldi import ArnoldiBasis
+
+    a = 75 * DEG
+    x = _samples()
+    space = PolynomialSpace("legendre", np.stack([x.min(0), x.max(0)], 1), "total")
+    X = configurations(P, space.domain, 4000)
+    basis, Q = ArnoldiBasis.build(space, space.to_window(X), np.ones(len(X)), 20)
+    q = Q.T @ ((X[:, 0] - a) ** 2 + (X[:, 1] - a) ** 2 - 0.01)
+    p = Q.T @ (1.0 + X[:, 2])
+    rf = RationalFunction(space, p, q, p_basis=basis, q_basis=basis)
+    screened = check_validity(rf, P)
+    monkeypatch.setattr(ArnoldiBasis, "evaluate_blas", ArnoldiBasis.evaluate)
+    exact = check_validity(rf, P)
+    assert screened is not None and exact is not None and not screened.valid
+    assert len(screened.bad_points) > 10
+    assert np.array_equal(screened.bad_points, exact.bad_points)
+    assert (screened.min_q, screened.min_r, screened.checked) == (
+        exact.min_q, exact.min_r, exact.checked)

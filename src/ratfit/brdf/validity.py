@@ -238,7 +238,8 @@ def check_validity(rf: RationalFunction, param: str, domain: ArrayLike | None = 
     step = (_bounds(k)[:, 1] - _bounds(k)[:, 0]) / per
     searches = ((True, q / qs), (False, pv / (qs * rs))) if numerator else ((True, q / qs),)
     for use_q, vals in searches:
-        pick = np.argsort(vals)[: min(starts, len(vals))]
+        # (stable: among equal values, as the fold frame's mirror pairs give, grid order)
+        pick = np.argsort(vals, kind="stable")[: min(starts, len(vals))]
         pts, best = _compass(rf, p, dom, a[pick], vals[pick], step, sign, qs,
                              qs * rs, use_q=use_q, cols=cols, second=second)
         checked += pts
