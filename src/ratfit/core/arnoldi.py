@@ -182,9 +182,9 @@ class ArnoldiBasis:
         return out
 
     def evaluate_blas(self, x: ArrayLike, coef: ArrayLike, *, window: bool = False) -> Array:
-        """sum_k coef_k phi_k(x) through BLAS products, in blocks of points: about twice as
-        fast as :meth:`evaluate` (8x at 148 724 points and 112 functions), and not in its
-        fixed order of operations, so for values no verdict is taken on and no export
+        """sum_k coef_k phi_k(x) through BLAS products, in blocks of points: faster than
+        :meth:`evaluate` (8x at 148 724 points and 112 functions on two idle cores), and not
+        in its fixed order of operations, so for values no verdict is taken on and no export
         reproduces: a denominator guess's weights, and the BRDF validity check's screen of
         its grid (:func:`ratfit.brdf.validity._grid_values`, which takes the fixed-order
         values wherever it reads them closely)."""
