@@ -35,6 +35,7 @@ from ratfit.core.bases import PolynomialSpace
 from ratfit.core.dominance import first_of_groups, groups, prefix_max
 from ratfit.core.positivity import SignProof
 from ratfit.core.rational import RationalFunction
+from ratfit.core.systems import smallest
 from ratfit.errors import InputError
 from ratfit.io.fitfile import ceiling_bound, proof_ceiling
 
@@ -293,10 +294,9 @@ class _Screened:
 
 
 def _extremes(v: Array, k: int) -> NDArray[np.int64]:
-    """Indices of the ``k`` smallest and ``k`` largest of ``v`` (NaN counts as largest)."""
-    if len(v) <= 2 * k:
-        return np.arange(len(v))
-    return np.concatenate([np.argpartition(v, k)[:k], np.argpartition(v, len(v) - k)[-k:]])
+    """Indices of the ``k`` smallest and the ``k`` largest of ``v`` (a NaN is neither:
+    :func:`_grid_values` takes every non-finite value exactly anyway)."""
+    return np.concatenate([smallest(v, k), smallest(-v, k)])
 
 
 def _grid_values(rf: RationalFunction, second: Callable[[Array], Array] | None,
