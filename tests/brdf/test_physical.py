@@ -357,3 +357,43 @@ def test_the_screened_check_finds_what_the_exact_one_finds(monkeypatch) -> None:
     assert np.array_equal(screened.bad_points, exact.bad_points)
     assert (screened.min_q, screened.min_r, screened.checked) == (
         exact.min_q, exact.min_r, exact.checked)
+
+
+def test_a_refuted_proofs_pocket_becomes_rows_where_q_is_negative() -> None:
+    """dips_around reads a fine grid around the points a proof refuted at: it returns
+    those points (once each) and every grid point where q <= 0, all valid configurations
+    inside the domain, so one repair round constrains the whole pocket, not a corner."""
+    from ratfit.brdf.validity import _valid_or_limits, dips_around
+    from ratfit.core.arnoldi import ArnoldiBasis
+
+    fold = "RUSIN_TH_TD_FOLD"
+    dom = np.array([[0.0124, 1.536], [0.0, 1.5359], [-0.9758, 0.9994]])
+    space = PolynomialSpace("legendre", dom, "total")
+    X = configurations(fold, dom, 6000)
+    centre = np.array([0.65, 1.2, 0.13])
+    radius = 0.03  # a pocket narrower than the validity grid's spacing (~0.04 rad)
+    basis, Q = ArnoldiBasis.build(space, space.to_window(X), np.ones(len(X)), 10)
+    q = Q.T @ (np.sum((X - centre) ** 2, axis=1) - radius**2)
+    p = Q.T @ np.ones(len(X))
+    rf = RationalFunction(space, p, q, p_basis=basis, q_basis=basis)
+    assert rf.denominator(X).min() > 0  # the grid alone does not see it
+    corner = centre + np.array([0.02, 0.0, 0.0])
+    rows = dips_around(rf, np.repeat(corner[None], 8, axis=0), fold)
+    assert np.sum(np.all(rows == corner, axis=1)) == 1
+    inside = rows[~np.all(rows == corner, axis=1)]
+    assert len(inside) > 100
+    assert np.all(rf.denominator(inside) <= 0)
+    assert np.all(np.linalg.norm(inside - centre, axis=1) <= radius * 1.0001)
+    assert np.all((inside >= dom[:, 0]) & (inside <= dom[:, 1]))
+    assert np.all(_valid_or_limits(get_parametrization(fold), inside, dom))
+    # the pocket's centre is among the rows' reach: the nearest row lies within a step
+    step = 2 * 0.04 * (dom[:, 1] - dom[:, 0]) / 16
+    assert np.min(np.max(np.abs(inside - centre) / step, axis=1)) <= 0.5 + 1e-9
+    # where q is positive all around, the points alone come back
+    far = np.array([[0.3, 0.5, 0.5]])
+    assert np.array_equal(dips_around(rf, far, fold), far)
+    # with a second function (p here), its negative points join too
+    rf2 = RationalFunction(space, Q.T @ X[:, 2], Q.T @ np.ones(len(X)),
+                           p_basis=basis, q_basis=basis)
+    got = dips_around(rf2, np.array([[0.33, 0.41, 0.01]]), fold)
+    assert len(got) > 50 and np.sum(got[:, 2] > 0) == 1

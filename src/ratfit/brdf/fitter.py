@@ -1691,7 +1691,7 @@ class BRDFFitter(RationalFitter):
                 if attempt or not len(proof.bad_points):
                     break
                 # the repair of the search, now with the full proof as the check
-                self._points_of(j).append(_spread(proof.bad_points, SEARCH_POINTS))
+                self._points_of(j).append(_spread(self._around(proof, fam, j), SEARCH_POINTS))
                 out = self._polish_rounds(rf, seg, j, None, rounds=REPAIR_ROUNDS,
                                           method="qp", repair=True,
                                           work=self._polish_work(j))
@@ -1840,6 +1840,18 @@ class BRDFFitter(RationalFitter):
         limit = self.work_limit
         return None if limit is None else max(1, int(limit * POLISH_WORK_SHARE))
 
+    def _around(self, proof: Any, rf: RationalFunction, j: int) -> Array:
+        """Where ``proof`` failed, as rows: its points, and where it found q <= 0 or a
+        bound broken (a pocket between the grid's points), every point of a fine grid
+        around them where ``rf`` breaks it too (:func:`ratfit.brdf.validity.dips_around`)."""
+        from ratfit.brdf.validity import dips_around
+
+        if not proof.refuted or not len(proof.bad_points):
+            return proof.bad_points
+        return dips_around(rf, proof.bad_points, self.parametrization, self.used_coords,
+                           values=self.value_form, ceiling=self._ceiling(j),
+                           envelope=self._proof_envelope(j))
+
     def _validity_points(self, j: int, domain: Array) -> Array | None:
         """The validity grid of ``domain`` and the points channel ``j``'s candidates
         failed at (:meth:`_points_of`): where a polish keeps q > 0 and the ceiling."""
@@ -1978,7 +1990,7 @@ class BRDFFitter(RationalFitter):
                                    max_boxes=40_000 if final else SEARCH_PROOF_BOXES)
             self.__dict__.setdefault("_proofs", {})[id(rf)] = proof
             if not proof.proved and (final or proof.refuted):
-                chk = replace(chk, valid=False, bad_points=proof.bad_points,
+                chk = replace(chk, valid=False, bad_points=self._around(proof, rf, j),
                               method=f"{chk.method}; {proof.summary()}")
         if not hasattr(self, "_checks"):
             self._checks = {}

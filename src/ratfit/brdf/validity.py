@@ -50,6 +50,7 @@ __all__ = [
     "box_configurations",
     "check_validity",
     "configurations",
+    "dips_around",
     "envelope_from_dict",
     "grazing",
     "theta_d_growth",
@@ -156,11 +157,66 @@ def box_configurations(param: str, domain: ArrayLike, points: int = 200_000) -> 
     per = max(3, int(points ** (1.0 / p.dim)))
     axes = [np.linspace(lo, hi, per) for lo, hi in dom]
     g = np.stack([a.ravel() for a in np.meshgrid(*axes, indexing="ij")], axis=1)
+    ok = _valid_or_limits(p, g, dom)
+    return None if ok is None else g[ok]
+
+
+def _valid_or_limits(p: Parametrization, g: Array, dom: Array) -> NDArray[np.bool_] | None:
+    """Rows of ``g`` (points of the box ``dom``) that are valid configurations or limits
+    of them (:func:`box_configurations`); None when ``p`` cannot convert them."""
     try:
-        ok = _round_trips(p, g) | _round_trips(p, g + LIMIT_NUDGE * (dom.mean(axis=1) - g))
+        return _round_trips(p, g) | _round_trips(p, g + LIMIT_NUDGE * (dom.mean(axis=1) - g))
     except InputError:
         return None
-    return g[ok]
+
+
+def dips_around(rf: RationalFunction, points: ArrayLike, param: str,
+                keep: ArrayLike | None = None, *, values: str = "linear",
+                ceiling: float | None = None, envelope: Envelope | None = None,
+                reach: float = 0.04, per: int = 33, centres: int = 8) -> Array:
+    """``points`` and the points of a fine grid around them where ``rf`` fails: q <= 0,
+    or the second function of :func:`check_validity` (p, or C q - p) < 0.
+
+    A refuted proof reports the corners of the first piece where q is provably
+    negative: a few copies of one point in a pocket where q dips below zero between
+    the validity grid's points. Rows there alone move the pocket a box-width, where
+    the next proof finds it again: laika_ceiling_paint_18_gray R's repair took seven
+    rounds of 3-4 s, each with one or two new corners, while a grid 0.002 rad apart
+    showed 1 442 points with q < 0 in a pocket 0.07 x 0.04 x 0.03 rad wide after the
+    first. The grid (``per`` points an axis, ``reach`` of the domain's extent to each
+    side, clipped to the domain; valid configurations only, where the parametrization
+    says which) is read around at most ``centres`` points at least ``reach`` apart.
+    """
+    dom = np.asarray(rf.space.domain, dtype=float).reshape(-1, 2)
+    pts = np.unique(np.asarray(points, dtype=float).reshape(-1, len(dom)), axis=0)
+    if not len(pts):
+        return pts
+    ext = dom[:, 1] - dom[:, 0]
+    unit = np.where(ext > 0, ext, 1.0)
+    chosen: list[Array] = []
+    for x in pts:
+        if all(np.max(np.abs(x - c) / unit) >= reach for c in chosen):
+            chosen.append(x)
+            if len(chosen) == centres:
+                break
+    steps = np.linspace(-reach, reach, per)
+    offsets = np.stack([g.ravel() for g in np.meshgrid(*([steps] * len(dom)),
+                                                       indexing="ij")], axis=1) * ext
+    grid = np.clip(np.concatenate([c + offsets for c in chosen]), dom[:, 0], dom[:, 1])
+    p = find_parametrization(param)
+    own_box = p is not None and keep is None and p.dim == len(dom)
+    if p is not None and own_box:
+        ok = _valid_or_limits(p, grid, dom)
+        if ok is not None:
+            grid = grid[ok]
+    sign = _q_sign(rf, param, np.ones(1), own_box)  # (no grid: q > 0, as at the samples)
+    second = _second(rf, values, ceiling, envelope)
+    with np.errstate(all="ignore"):
+        q = sign * rf.denominator(grid)
+        bad = ~(q > 0)
+        if second is not None:
+            bad |= ~(sign * second(grid) >= 0)
+    return np.unique(np.concatenate([pts, grid[bad]]), axis=0)
 
 
 #: How far toward the box's centre :func:`box_configurations` moves a grid point to tell
