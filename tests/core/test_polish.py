@@ -7,7 +7,9 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from ratfit.core.polish import bound_rows, polish_fit
+from ratfit.core.bases import PolynomialSpace
+from ratfit.core.polish import _positivity_rows, bound_row_count, bound_rows, polish_fit
+from ratfit.core.rational import RationalFunction
 from ratfit.core.segments import Segments
 from ratfit.core.verify import verify
 from ratfit.fitting.search import RationalFitter
@@ -381,3 +383,27 @@ def test_bound_rows_are_the_ceiling_and_floor_in_coefficients() -> None:
     # one ceiling for every point; nothing asked, no rows
     np.testing.assert_allclose(bound_rows(P, Q, 2.0) @ c, 2.0 * (Q @ q) - P @ p, rtol=1e-13)
     assert bound_rows(P, Q).shape == (0, 5)
+    # written into a given array: the same numbers, and the count it needs
+    assert bound_row_count(6, ceiling, floor) == 9 and bound_row_count(6) == 0
+    out = np.full((10, 5), np.nan)
+    assert bound_rows(P, Q, ceiling, floor, out=out[1:]) is not None
+    assert np.array_equal(out[1:], rows) and np.isnan(out[0]).all()
+
+
+def test_the_polishs_validity_rows_are_q_p_and_the_bounds_unit_scaled() -> None:
+    """_positivity_rows: q rows as they are, then p rows and the bound rows, each divided
+    by its norm (the second array: 1 / that norm, 0 on q rows), in one array."""
+    space = PolynomialSpace("legendre", [[-1.0, 1.0]], "total")
+    rf = RationalFunction(space, np.array([1.0, 0.5, 0.2]), np.array([2.0, 0.3]))
+    pts = np.linspace(-1, 1, 7)[:, None]
+    P = np.polynomial.legendre.legvander(pts[:, 0], 2)
+    Q = np.polynomial.legendre.legvander(pts[:, 0], 1)
+    floor = np.where(pts[:, 0] > 0, 0.1, -np.inf)
+    G, inv = _positivity_rows(rf, pts, numerator=True, ceiling=3.0, floor=floor)
+    assert G.shape == (7 + 7 + 7 + 3, 5) and inv.shape == (24,)
+    assert np.array_equal(G[:7], np.hstack([np.zeros((7, 3)), Q])) and not inv[:7].any()
+    raw = np.vstack([np.hstack([P, np.zeros((7, 2))]), bound_rows(P, Q, 3.0, floor)])
+    np.testing.assert_allclose(G[7:], raw / np.linalg.norm(raw, axis=1)[:, None], rtol=1e-15)
+    np.testing.assert_allclose(inv[7:], 1.0 / np.linalg.norm(raw, axis=1), rtol=1e-15)
+    q_only, none = _positivity_rows(rf, pts, numerator=False)
+    assert np.array_equal(q_only, G[:7]) and not none.any()
