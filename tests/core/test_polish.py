@@ -388,6 +388,8 @@ def test_bound_rows_are_the_ceiling_and_floor_in_coefficients() -> None:
     out = np.full((10, 5), np.nan)
     assert bound_rows(P, Q, ceiling, floor, out=out[1:]) is not None
     assert np.array_equal(out[1:], rows) and np.isnan(out[0]).all()
+    with pytest.raises(ValueError, match="rows need"):
+        bound_rows(P, Q, ceiling, floor, out=out)
 
 
 def test_the_polishs_validity_rows_are_q_p_and_the_bounds_unit_scaled() -> None:

@@ -371,8 +371,11 @@ def bound_rows(P: Array, Q: Array, ceiling: float | ArrayLike | None = None,
     :func:`bound_row_count` rows to write them into (the polish's rows at 60 000 points
     are 100+ MB, and stacking copies took a tenth of a MERL-table fit)."""
     n, total = P.shape[1], P.shape[1] + Q.shape[1]
+    count = bound_row_count(len(P), ceiling, floor)
     if out is None:
-        out = np.empty((bound_row_count(len(P), ceiling, floor), total))
+        out = np.empty((count, total))
+    elif out.shape != (count, total):
+        raise ValueError(f"out has shape {out.shape}; the rows need {(count, total)}")
     i = 0
     if ceiling is not None:
         np.negative(P, out=out[:len(P), :n])
