@@ -397,7 +397,7 @@ def test_a_refuted_proofs_pocket_becomes_rows_where_q_is_negative() -> None:
                            p_basis=basis, q_basis=basis)
     got = dips_around(rf2, np.array([[0.33, 0.41, 0.01]]), fold)
     assert len(got) > 50 and np.sum(got[:, 2] > 0) == 1
-    # the grid's size: about points_each a centre (33 an axis in 3-D), whatever the dimension
+    # the grid's size: per (33) an axis, at most about points_each a centre in any dimension
     everywhere = RationalFunction(space, p, -(q + 1e3 * (Q.T @ np.ones(len(X)))),
                                   p_basis=basis, q_basis=basis)
     assert everywhere.denominator(X).max() < 0

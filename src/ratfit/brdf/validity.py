@@ -173,7 +173,8 @@ def _valid_or_limits(p: Parametrization, g: Array, dom: Array) -> NDArray[np.boo
 def dips_around(rf: RationalFunction, points: ArrayLike, param: str,
                 keep: ArrayLike | None = None, *, values: str = "linear",
                 ceiling: float | None = None, envelope: Envelope | None = None,
-                reach: float = 0.04, points_each: int = 36_000, centres: int = 8) -> Array:
+                reach: float = 0.04, per: int = 33, points_each: int = 36_000,
+                centres: int = 8) -> Array:
     """``points`` and the points of a fine grid around them where ``rf`` fails: q <= 0,
     or the second function of :func:`check_validity` (p, or C q - p) < 0.
 
@@ -183,10 +184,10 @@ def dips_around(rf: RationalFunction, points: ArrayLike, param: str,
     the next proof finds it again: laika_ceiling_paint_18_gray R's repair took seven
     rounds of 3-4 s, each with one or two new corners, while a grid 0.002 rad apart
     showed 1 442 points with q < 0 in a pocket 0.07 x 0.04 x 0.03 rad wide after the
-    first. The grid (about ``points_each`` points: 33 an axis in 3-D, 14 in 4-D;
-    ``reach`` of the domain's extent to each side, clipped to the domain; valid
-    configurations only, where the parametrization says which) is read around at most
-    ``centres`` of ``points``, at least ``reach`` apart.
+    first. The grid (``per`` points an axis, fewer where that would pass
+    ``points_each`` points: 14 an axis in 4-D; ``reach`` of the domain's extent to each
+    side, clipped to the domain; valid configurations only, where the parametrization
+    says which) is read around at most ``centres`` of ``points``, at least ``reach`` apart.
     """
     dom = np.asarray(rf.space.domain, dtype=float).reshape(-1, 2)
     pts = np.unique(np.asarray(points, dtype=float).reshape(-1, len(dom)), axis=0)
@@ -200,7 +201,8 @@ def dips_around(rf: RationalFunction, points: ArrayLike, param: str,
             chosen.append(x)
             if len(chosen) == centres:
                 break
-    steps = np.linspace(-reach, reach, max(3, round(points_each ** (1.0 / len(dom)))))
+    axis = max(3, min(per, round(points_each ** (1.0 / len(dom)))))
+    steps = np.linspace(-reach, reach, axis)
     offsets = np.stack([g.ravel() for g in np.meshgrid(*([steps] * len(dom)),
                                                        indexing="ij")], axis=1) * ext
     grid = np.clip(np.concatenate([c + offsets for c in chosen]), dom[:, 0], dom[:, 1])
