@@ -214,11 +214,13 @@ def dips_around(rf: RationalFunction, points: ArrayLike, param: str,
             grid = grid[ok]
     sign = _q_sign(rf, param, np.ones(1), own_box)  # (no grid: q > 0, as at the samples)
     second = _second(rf, values, ceiling, envelope)
+    # screened values, exact wherever a sign could be in doubt: the exact signs, at a
+    # fifth of the cost (up to 8 x 35 937 points for each refuted candidate)
+    q, sv = _grid_values(rf, second, _second(_Screened(rf), values, ceiling, envelope), grid)
     with np.errstate(all="ignore"):
-        q = sign * rf.denominator(grid)
-        bad = ~(q > 0)
+        bad = ~(sign * q > 0)
         if second is not None:
-            bad |= ~(sign * second(grid) >= 0)
+            bad |= ~(sign * sv >= 0)
     return np.unique(np.concatenate([pts, grid[bad]]), axis=0)
 
 
