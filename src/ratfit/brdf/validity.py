@@ -208,20 +208,24 @@ def dips_around(rf: RationalFunction, points: ArrayLike, param: str,
     grid = np.clip(np.concatenate([c + offsets for c in chosen]), dom[:, 0], dom[:, 1])
     p = find_parametrization(param)
     own_box = p is not None and keep is None and p.dim == len(dom)
-    if p is not None and own_box:
-        ok = _valid_or_limits(p, grid, dom)
-        if ok is not None:
-            grid = grid[ok]
     sign = _q_sign(rf, param, np.ones(1), own_box)  # (no grid: q > 0, as at the samples)
     second = _second(rf, values, ceiling, envelope)
     # screened values, exact wherever a sign could be in doubt: the exact signs, at a
     # fifth of the cost (up to 8 x 35 937 points for each refuted candidate)
-    q, sv = _grid_values(rf, second, _second(_Screened(rf), values, ceiling, envelope), grid)
+    q, sv = _grid_values(rf, second, _second(_Screened(rf), values, ceiling, envelope), grid,
+                         extremes=0)
     with np.errstate(all="ignore"):
         bad = ~(sign * q > 0)
         if second is not None:
             bad |= ~(sign * sv >= 0)
-    return np.unique(np.concatenate([pts, grid[bad]]), axis=0)
+    found = grid[bad]
+    if p is not None and own_box and len(found):
+        # which points are valid pairs, asked of the failing ones only: the round trip
+        # through directions had been two thirds of this function's time on every point
+        ok = _valid_or_limits(p, found, dom)
+        if ok is not None:
+            found = found[ok]
+    return np.unique(np.concatenate([pts, found]), axis=0)
 
 
 #: How far toward the box's centre :func:`box_configurations` moves a grid point to tell
@@ -361,21 +365,25 @@ def _extremes(v: Array, k: int) -> NDArray[np.int64]:
 
 
 def _grid_values(rf: RationalFunction, second: Callable[[Array], Array] | None,
-                 screened: Callable[[Array], Array] | None, c: Array) -> tuple[Array, Array]:
+                 screened: Callable[[Array], Array] | None, c: Array,
+                 extremes: int = SCREEN_EXTREMES) -> tuple[Array, Array]:
     """q and the second function (|q| without one: p counts as positive wherever q is)
     at the grid ``c``: screened values, and the exact ones wherever the check reads
-    them closely (:data:`SCREEN_MARGIN`, :data:`SCREEN_EXTREMES`)."""
+    them closely (:data:`SCREEN_MARGIN`; the ``extremes`` smallest and largest of q, p and
+    |p / q|, 0 where only the signs are read)."""
     q = _Screened(rf).denominator(c)
     pv = screened(c) if screened is not None else np.abs(q)
     with np.errstate(all="ignore"):
         qs = float(np.nanmax(np.abs(q), initial=0.0))
         ps = float(np.nanmax(np.abs(pv), initial=0.0))
         near = ~(np.abs(q) > SCREEN_MARGIN * qs) | ~(np.abs(pv) > SCREEN_MARGIN * ps)
-        ratio = np.abs(pv / q)
     close = np.flatnonzero(near)
-    k = SCREEN_EXTREMES
-    close = np.unique(np.concatenate([close, _extremes(q, k), _extremes(pv, k),
-                                      _extremes(np.where(np.isfinite(ratio), ratio, 0.0), k)]))
+    if extremes:
+        with np.errstate(all="ignore"):
+            ratio = np.abs(pv / q)
+        close = np.unique(np.concatenate([
+            close, _extremes(q, extremes), _extremes(pv, extremes),
+            _extremes(np.where(np.isfinite(ratio), ratio, 0.0), extremes)]))
     at = c[close]
     q[close] = rf.denominator(at)
     pv[close] = second(at) if second is not None else np.abs(q[close])
