@@ -397,6 +397,21 @@ def test_a_refuted_proofs_pocket_becomes_rows_where_q_is_negative() -> None:
                            p_basis=basis, q_basis=basis)
     got = dips_around(rf2, np.array([[0.33, 0.41, 0.01]]), fold)
     assert len(got) > 50 and np.sum(got[:, 2] > 0) == 1
+    # a pocket across the edge of the valid pairs (40 % of its grid valid there): exactly
+    # the grid's valid points where q <= 0, as read on the whole grid
+    edge = np.array([0.7, 1.1, 0.4])
+    rf3 = RationalFunction(space, p, Q.T @ (np.sum((X - edge) ** 2, axis=1) - radius**2),
+                           p_basis=basis, q_basis=basis)
+    steps = np.linspace(-0.04, 0.04, 33)
+    ext = dom[:, 1] - dom[:, 0]
+    grid = np.clip(edge + np.stack(np.meshgrid(steps, steps, steps, indexing="ij"),
+                                   axis=-1).reshape(-1, 3) * ext, dom[:, 0], dom[:, 1])
+    valid = _valid_or_limits(get_parametrization(fold), grid, dom)
+    assert 0.2 < valid.mean() < 0.8
+    want = grid[valid & (rf3.denominator(grid) <= 0)]
+    got3 = dips_around(rf3, edge[None], fold)
+    assert len(want) > 100
+    assert np.array_equal(got3, np.unique(np.concatenate([edge[None], want]), axis=0))
     # the grid's size: per (33) an axis, at most about points_each a centre in any dimension
     everywhere = RationalFunction(space, p, -(q + 1e3 * (Q.T @ np.ones(len(X)))),
                                   p_basis=basis, q_basis=basis)
