@@ -372,7 +372,7 @@ def main() -> None:
                  f"p95 < 25 % (all pairs) in every channel and <= {MAX_NUMBERS} numbers.")
     if ratios:
         note += (f" Baseline: the code in {args.baseline}, run just before this code on the "
-                 "same table. " + " ".join(ratios))
+                 "same table. " + ". ".join(ratios) + ".")
     what = " ".join(["`ratfit brdf fit TABLE -o fit.json", *fit_args]) + "`"
     if compare:
         what += " (baseline: " + " ".join(["`ratfit brdf fit TABLE -o fit.json",
